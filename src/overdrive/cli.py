@@ -1,0 +1,114 @@
+"""The ``overdrive`` command line.
+
+Exit codes (contract): 0 ran and every expectation held; 1 ran and something was violated;
+2 bad usage or an invalid file, with a message naming the file, the field and the problem.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+import msgspec
+
+from overdrive import __version__
+
+EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
+
+
+def fail_usage(message: str) -> None:
+    click.echo(f"error: {message}", err=True)
+    raise SystemExit(EXIT_USAGE)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="overdrive")
+def main() -> None:
+    """overdrive: drive-by-wire motion control (move server, driving module, speed server,
+    JAUS 3.3 / ByWire XGV)."""
+
+
+@main.command()
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Run folder (default runs/NAME-TIMESTAMP/).")
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), help="Override the scenario's seed.")
+@click.option("--realtime", is_flag=True, help="Pace the simulation to the wall clock.")
+@click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
+def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, quiet: bool) -> None:
+    """Run SCENARIO against the simulated vehicle and write the run folder."""
+    from overdrive.scenario import ScenarioError, load_scenario
+    from overdrive.sim import default_out_dir, run_scenario
+
+    try:
+        loaded = load_scenario(scenario)
+        if seed is not None:
+            loaded = msgspec.structs.replace(
+                loaded, spec=msgspec.structs.replace(loaded.spec, seed=seed))
+        out = out_dir or default_out_dir(loaded)
+        show_progress = not quiet and sys.stdout.isatty()
+        if show_progress:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+            with Progress(TextColumn("[bold]{task.description}"), BarColumn(),
+                          TextColumn("{task.completed:.1f}/{task.total:.0f} s"),
+                          TimeRemainingColumn(), transient=True) as bar:
+                task = bar.add_task(loaded.name, total=loaded.spec.duration_s)
+                result = run_scenario(loaded, out, keep_trace=False, realtime=realtime,
+                                      progress=lambda now, _t: bar.update(task, completed=now))
+        else:
+            result = run_scenario(loaded, out, keep_trace=False, realtime=realtime)
+    except ScenarioError as exc:
+        fail_usage(str(exc))
+        return
+    if not quiet:
+        print_summary(result.summary, out)
+    else:
+        click.echo(str(out))
+    raise SystemExit(result.exit_code)
+
+
+def print_summary(summary: dict, out: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    final, peaks = summary["final"], summary["peaks"]
+    table = Table(title=f"overdrive sim: {summary['name']}", show_header=False)
+    table.add_column(style="bold")
+    table.add_column()
+    rows = [
+        ("vehicle", summary["vehicle"]["preset"]),
+        ("simulated", f"{summary['sim_time_s']:.1f} s in {summary['wall_time_s']:.2f} s "
+                      f"({summary['real_time_factor']}x real time)"),
+        ("odometer", f"{summary['odometer_m']:.2f} m"),
+        ("final position", f"x {final['x_m']:.2f} m, y {final['y_m']:.2f} m, "
+                           f"heading {final['heading_rad']:.3f} rad"),
+        ("final speed", f"{final['speed_mps']:.3f} m/s, gear {final['gear']}"),
+        ("final states", f"speed server {final['speed_state']}, safety {final['safety_mode']}"),
+        ("peaks", f"speed {peaks['max_speed_mps']:.2f} m/s, accel {peaks['max_accel_mps2']:.2f}, "
+                  f"decel {peaks['max_decel_mps2']:.2f}, lateral "
+                  f"{peaks['max_lateral_accel_mps2']:.2f} m/s^2"),
+        ("events", str(len(summary["events"]))),
+        ("violations", "none" if not summary["violations"] else "\n".join(summary["violations"])),
+        ("results", str(out)),
+    ]
+    for key, value in rows:
+        table.add_row(key, value)
+    console.print(table)
+
+
+def _register_optional() -> None:
+    """Subcommands whose modules may be absent from a partial build."""
+    try:
+        from overdrive.jaus.cli import jaus
+    except ImportError:
+        return
+    main.add_command(jaus)
+
+
+_register_optional()
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

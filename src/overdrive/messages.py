@@ -1,0 +1,302 @@
+"""Typed, immutable bus messages and the topics they travel on.
+
+Every message is a frozen ``msgspec.Struct``: cheap to build (~0.1 us), hashable, and it
+emits a JSON Schema (used for MCAP logs and the message reference). Quantities carry their
+unit in the field name. Sign conventions, fixed for the whole stack:
+
+- curvature ``_1pm`` and steering ``steer_pct``: positive turns right, negative left
+  (seed 004's MOVE convention);
+- heading ``_rad``: counter-clockwise from the x axis, so a left turn increases it;
+- speed ``speed_mps``: signed along the vehicle's heading, negative when reversing,
+  unless a field says otherwise.
+
+Topics are plain strings; the Zenoh bus prefixes them with ``overdrive/<vehicle>/``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import msgspec
+
+SCHEMA_VERSION = 1
+"""Bumped on any incompatible change to a message below; carried by serialized bus frames."""
+
+
+class Message(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """Base of all bus messages."""
+
+
+# --------------------------------------------------------------------------- topics
+
+class Topic:
+    """Topic names. One publisher per topic unless noted."""
+
+    MOVE_COMMAND = "move/command"            # planner -> move server (MoveCommand)
+    MOVE_REPLY = "move/reply"                # move server -> planner (MoveReply)
+    MOVE_STATUS = "move/status"              # move server -> anyone (MoveStatus)
+    STEERING = "driving/steering"            # path controller / move server -> driving (SteeringRequest)
+    MAX_SPEED = "driving/max_speed"          # many sources -> driving (MaxSpeed)
+    ADVANCE = "driving/advance"              # many sources -> driving (AdvanceAuthorization)
+    DRIVE_MODE = "driving/mode"              # move server -> driving (DriveMode)
+    DRIVING_STATUS = "driving/status"        # driving -> anyone (DrivingStatus)
+    SET_SPEED = "speed/set_speed"            # driving (or scenario) -> speed server (SetSpeed, "SPSS")
+    SPEED_STATE = "speed/state"              # speed server -> client (SpeedState)
+    PEDALS = "vehicle/pedals"                # speed server -> vehicle (PedalCommand)
+    STEER = "vehicle/steer"                  # driving -> vehicle (SteerCommand)
+    POWERTRAIN = "vehicle/powertrain"        # speed server -> vehicle (PowertrainCommand)
+    SAFETY = "vehicle/safety"                # scenario/world -> vehicle (SafetyDevices)
+    VEHICLE_STATUS = "vehicle/status"        # vehicle -> stack (VehicleStatus)
+    WHEEL_SPEED = "sensors/wheel_speed"      # vehicle -> stack (WheelSpeed)
+    GPS_INS = "sensors/gps_ins"              # vehicle -> stack (GpsIns)
+    IMU = "sensors/imu"                      # vehicle -> stack (Imu)
+    RADAR = "sensors/radar"                  # vehicle -> stack (Radar)
+    TRUTH = "sim/truth"                      # simulator ground truth, never read by the stack
+    NOTICE = "events"                        # any node -> recorder (Notice)
+
+
+# --------------------------------------------------------------------------- move server (seed 004)
+
+MoveKind = Literal["move", "reverse", "stop"]
+SpeedStateName = Literal[
+    "parked", "reset", "starting", "startwait", "paused", "runwait", "idle", "shifting", "run"
+]
+RequestableState = Literal["parked", "paused", "idle", "run"]
+Hint = Literal["none", "suggest_upshift", "suggest_downshift", "suggest_slowdown", "slipping"]
+
+
+
+class MoveCommand(Message, frozen=True):
+    """MOVE / REVERSE / STOP from the planner (seed 004 ``MsgMOVE``/``MsgREVERSE``/``MsgSTOP``)."""
+
+    kind: MoveKind
+    command_id: int = 0
+    distance_m: float = 0.0
+    maxspeed_mps: float = 0.0
+    curvature_1pm: float = 0.0
+
+
+class MoveReply(Message, frozen=True):
+    """Every MoveCommand gets one reply: accepted, or rejected with a reason code."""
+
+    command_id: int
+    kind: MoveKind
+    accepted: bool
+    code: Literal["ok", "infeasible", "busy", "not_ready", "invalid"] = "ok"
+    message: str = ""
+
+
+class MoveStatus(Message, frozen=True):
+    """Progress of the command being executed."""
+
+    command_id: int
+    phase: str                     # idle, starting, shifting, moving, stopping, estopped
+    remaining_m: float
+    latched_estop: bool = False
+    reason: str = ""
+
+
+# --------------------------------------------------------------------------- driving module (seed 003)
+
+class SteeringRequest(Message, frozen=True):
+    """Desired path curvature from the (single) path controller."""
+
+    curvature_1pm: float
+
+
+class MaxSpeed(Message, frozen=True):
+    """A speed limit from one source; the lowest live limit applies."""
+
+    source: str
+    speed_mps: float
+
+
+class AdvanceAuthorization(Message, frozen=True):
+    """Source ``source`` considers it safe to advance ``distance_m`` from where the vehicle is now.
+
+    Each source's authorization replaces that source's previous one and is used up as the
+    vehicle moves; the most restrictive source applies.
+    """
+
+    source: str
+    distance_m: float
+    reverse: bool = False
+
+
+class DriveMode(Message, frozen=True):
+    """What the driving module should make the speed server do (from the move server).
+
+    The driving module is the speed server's only client: it sequences the speed server
+    (parked -> paused -> idle -> run, gear changes through idle) towards ``state`` in
+    ``direction``. A nonzero ``fault`` is forwarded in the SPSS: the seed-001 way to force an
+    emergency stop.
+    """
+
+    state: RequestableState
+    direction: Literal["forward", "reverse"] = "forward"
+    fault: int = 0
+    reason: str = ""
+
+
+class DrivingStatus(Message, frozen=True):
+    goal_speed_mps: float
+    authorized_m: float            # NaN when there is no authorization
+    speed_limit_mps: float
+    curvature_1pm: float
+    accel_limit_mps2: float        # longitudinal acceleration still available in the ellipse
+    decel_limit_mps2: float
+    rejected: str = ""             # reason of the last rejected input, "" if none
+
+
+# --------------------------------------------------------------------------- speed server (seed 001)
+
+
+
+class SetSpeed(Message, frozen=True):
+    """SPSS: sent to the speed server every 100 ms; 200 ms without one is an emergency stop.
+
+    ``accel_mps2`` is always positive: the rate at which to reach ``speed_mps`` (up or down).
+    ``speed_mps`` is a magnitude; direction comes from the gear. ``fault`` nonzero forces a stop.
+    """
+
+    speed_mps: float
+    accel_mps2: float
+    gear: str
+    state: str
+    fault: int = 0
+
+
+class SpeedState(Message, frozen=True):
+    """Reply to every SPSS, and the speed server's periodic status."""
+
+    speed_mps: float
+    accel_mps2: float
+    gear: str
+    state: SpeedStateName
+    fault: int = 0
+    fault_message: str = ""
+    hint: Hint = "none"
+    estop: bool = False
+
+
+# --------------------------------------------------------------------------- actuators
+
+class PedalCommand(Message, frozen=True):
+    """Throttle and brake efforts, 0..100 %. Never both nonzero (the command gate enforces it)."""
+
+    throttle_pct: float
+    brake_pct: float
+    source: str = ""
+
+
+class SteerCommand(Message, frozen=True):
+    """Steering effort, -100..100 % of full lock; positive steers right."""
+
+    steer_pct: float
+    source: str = ""
+
+
+class PowertrainCommand(Message, frozen=True):
+    """Gear, engine and horn requests."""
+
+    gear: str
+    engine_on: bool
+    horn: bool = False
+    park_brake: bool = False
+    source: str = ""
+
+
+class SafetyDevices(Message, frozen=True):
+    """Physical safety devices (seed 000): SafeStop, manual overrides, door, e-stop, errors."""
+
+    safestop: Literal["run", "pause", "stop"] = "run"
+    manual_override: bool = False
+    emergency_manual_override: bool = False
+    door_open: bool = False
+    estop_button: bool = False
+    internal_error: bool = False
+    partial_mode: Literal["full", "manual-steering", "manual-speed"] = "full"
+
+
+# --------------------------------------------------------------------------- vehicle -> stack
+
+EngineState = Literal["off", "cranking", "running"]
+
+
+class VehicleStatus(Message, frozen=True):
+    gear: str
+    shifting: bool
+    engine: EngineState
+    engine_rpm: float
+    start_failed: bool             # last crank attempt failed
+    traction_control: bool         # tyre slip detected by the vehicle's traction control
+    steer_pct: float               # actual steering position, % of full lock
+    throttle_pct: float            # actual (lagged) actuator positions
+    brake_pct: float
+    safety_mode: str
+    computer_speed: bool = True    # partial mode: computer controls throttle/brake
+    computer_steering: bool = True
+
+
+class WheelSpeed(Message, frozen=True):
+    speed_mps: float               # signed by gear direction; differs from ground speed when slipping
+
+
+class GpsIns(Message, frozen=True):
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_mps: float               # signed ground speed along the heading
+    pitch_rad: float               # nose up positive
+    roll_rad: float                # right side down positive
+    odometer_m: float              # path length from the integrated pose, forward and reverse
+
+
+class Imu(Message, frozen=True):
+    accel_x_mps2: float            # specific force, forward (includes gravity along the pitch)
+    accel_y_mps2: float            # specific force, left
+    accel_z_mps2: float            # specific force, up (about +9.81 at rest on flat ground)
+    yaw_rate_rps: float            # counter-clockwise positive
+
+
+class Radar(Message, frozen=True):
+    """Forward collision radar (seed 004's VORAD): nearest target in the cone ahead."""
+
+    target: bool
+    range_m: float                 # from the front bumper; max range when no target
+    closing_speed_mps: float = 0.0
+
+
+class Truth(Message, frozen=True):
+    """Simulator ground truth for traces and invariant checks; the stack never reads it."""
+
+    x_m: float
+    y_m: float
+    heading_rad: float
+    speed_mps: float
+    accel_mps2: float
+    lat_accel_mps2: float
+    curvature_1pm: float
+    pitch_rad: float
+    roll_rad: float
+    odometer_m: float
+    slip: bool
+    contact: bool                  # the vehicle's footprint touches an obstacle
+
+
+# --------------------------------------------------------------------------- events
+
+class Notice(Message, frozen=True):
+    """A discrete happening for the run's event list (fault, estop, rejection, hint, ...)."""
+
+    kind: str
+    source: str
+    code: str = ""
+    reason: str = ""
+
+
+ALL_MESSAGES: tuple[type[Message], ...] = (
+    MoveCommand, MoveReply, MoveStatus, SteeringRequest, MaxSpeed, AdvanceAuthorization,
+    DriveMode, DrivingStatus, SetSpeed, SpeedState, PedalCommand, SteerCommand, PowertrainCommand,
+    SafetyDevices, VehicleStatus, WheelSpeed, GpsIns, Imu, Radar, Truth, Notice,
+)

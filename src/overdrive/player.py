@@ -1,0 +1,188 @@
+"""The scenario player: a node that turns timed scenario events into bus messages.
+
+It plays the planner (MOVE/REVERSE/STOP), the other sources of seed 003 (advance, max_speed,
+steer), an SPSS client (set_speed, repeated every 100 ms as seed 001 requires), the safety
+devices (SafeStop, overrides, door), world changes, actuator faults, and open-loop actuator
+commands. Channel faults (``drop``) are not messages: ``ChannelFaults`` applies them on the bus.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import msgspec
+
+from overdrive.messages import (
+    AdvanceAuthorization,
+    MaxSpeed,
+    MoveCommand,
+    PedalCommand,
+    PowertrainCommand,
+    SafetyDevices,
+    SetSpeed,
+    SteerCommand,
+    SteeringRequest,
+    Topic,
+)
+from overdrive.scenario import EventSpec, Scenario
+from overdrive.vehicle.plant import ActuatorFaults, World
+from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
+
+SPSS_PERIOD_S = 0.1        # seed 001: "An SPSS message should be sent to the speed server every 100ms"
+REFRESH_PERIOD_S = 0.1     # max_speed limits are refreshed at the same rate, so they never expire
+EPS_S = 1e-9
+
+CHANNEL_TOPICS: dict[str, tuple[str, ...]] = {
+    "set_speed": (Topic.SET_SPEED,),
+    "steering": (Topic.STEER,),
+    "pedals": (Topic.PEDALS,),
+    "radar": (Topic.RADAR,),
+    "gps": (Topic.GPS_INS,),
+    "imu": (Topic.IMU,),
+    "wheel_speed": (Topic.WHEEL_SPEED,),
+    "speed_state": (Topic.SPEED_STATE,),
+    "move": (Topic.MOVE_COMMAND,),
+    "advance": (Topic.ADVANCE,),
+    "max_speed": (Topic.MAX_SPEED,),
+    "jaus": (),                       # the JAUS link: applied by the XGV transport
+}
+
+
+def world_from_spec(spec: Any) -> World:
+    grade = spec.grade_percent
+    if isinstance(grade, list):
+        segments = tuple(sorted((s.from_m, s.grade_percent) for s in grade))
+        if not segments or segments[0][0] > 0.0:
+            segments = ((float("-inf"), 0.0), *segments)
+    else:
+        segments = ((float("-inf"), float(grade)),)
+    return World(grade_segments=segments, friction=spec.friction,
+                 obstacles=tuple((o.x_m, o.y_m) for o in spec.obstacles),
+                 roughness_mps2=spec.roughness_mps2)
+
+
+class ChannelFaults:
+    """Bus filter for ``drop`` events: a channel carries nothing during its windows."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.now_s = 0.0
+        self.windows: dict[str, list[tuple[float, float]]] = {}
+        for event in scenario.events:
+            if event.drop is not None:
+                for topic in CHANNEL_TOPICS[event.drop.channel]:
+                    self.windows.setdefault(topic, []).append(
+                        (event.at_s, event.at_s + event.drop.for_s))
+
+    def admit(self, topic: str, _msg: Any) -> bool:
+        windows = self.windows.get(topic)
+        if not windows:
+            return True
+        now = self.now_s
+        return not any(start - EPS_S <= now < end - EPS_S for start, end in windows)
+
+
+class ScenarioPlayer:
+    name = "scenario"
+    period_s = 0.01
+    subscriptions: tuple[str, ...] = ()
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.params = scenario.vehicle
+        self.pending = list(scenario.events)
+        self.next_index = 0
+        self.devices = SafetyDevices()
+        self.faults = ActuatorFaults()
+        self.world = world_from_spec(scenario.spec.world)
+        ready = scenario.spec.start == "ready"
+        self.gear = self.params.drive_gear if ready else self.params.park_gear
+        self.engine_on = ready
+        self.spss: SetSpeed | None = None
+        self.next_spss_s = 0.0
+        self.limits: dict[str, MaxSpeed] = {}
+        self.next_refresh_s = 0.0
+        self.command_id = 0
+        self.started = False
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        if not self.started:
+            self.started = True
+            out.append((Topic.SAFETY, self.devices))
+        while self.next_index < len(self.pending) and self.pending[self.next_index].at_s <= now_s + EPS_S:
+            self._apply(self.pending[self.next_index], now_s, out)
+            self.next_index += 1
+        if self.spss is not None and now_s + EPS_S >= self.next_spss_s:
+            out.append((Topic.SET_SPEED, self.spss))
+            self.next_spss_s += SPSS_PERIOD_S
+        if self.limits and now_s + EPS_S >= self.next_refresh_s:
+            out.extend((Topic.MAX_SPEED, m) for m in self.limits.values())
+            self.next_refresh_s = now_s + REFRESH_PERIOD_S
+        return out
+
+    def _powertrain(self) -> PowertrainCommand:
+        return PowertrainCommand(gear=self.gear, engine_on=self.engine_on,
+                                 park_brake=self.gear == self.params.park_gear, source="scenario")
+
+    def _apply(self, event: EventSpec, now_s: float, out: list[tuple[str, Any]]) -> None:
+        kind, body = event.kind, event.body
+        if kind in ("move", "reverse", "stop"):
+            self.command_id += 1
+            if kind == "stop":
+                out.append((Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=self.command_id)))
+            else:
+                out.append((Topic.MOVE_COMMAND, MoveCommand(
+                    kind=kind, command_id=self.command_id, distance_m=body.distance_m,
+                    maxspeed_mps=body.maxspeed_mps, curvature_1pm=body.curvature_1pm)))
+        elif kind == "advance":
+            out.append((Topic.ADVANCE, AdvanceAuthorization(
+                source=body.source, distance_m=body.distance_m, reverse=body.reverse)))
+        elif kind == "max_speed":
+            self.limits[body.source] = MaxSpeed(source=body.source, speed_mps=body.speed_mps)
+            out.append((Topic.MAX_SPEED, self.limits[body.source]))
+            self.next_refresh_s = now_s + REFRESH_PERIOD_S
+        elif kind == "steer":
+            out.append((Topic.STEERING, SteeringRequest(curvature_1pm=body.curvature_1pm)))
+        elif kind == "set_speed":
+            self.spss = SetSpeed(speed_mps=body.speed_mps, accel_mps2=body.accel_mps2,
+                                 gear=body.gear, state=body.state, fault=body.fault)
+            self.next_spss_s = now_s
+            out.append((Topic.SET_SPEED, self.spss))
+            self.next_spss_s = now_s + SPSS_PERIOD_S
+        elif kind == "actuators":
+            out.append((Topic.PEDALS, PedalCommand(throttle_pct=body.throttle_pct,
+                                                   brake_pct=body.brake_pct, source="scenario")))
+            out.append((Topic.STEER, SteerCommand(steer_pct=body.steer_pct, source="scenario")))
+        elif kind == "gear":
+            self.gear = body
+            out.append((Topic.POWERTRAIN, self._powertrain()))
+        elif kind == "engine":
+            self.engine_on = body == "on"
+            out.append((Topic.POWERTRAIN, self._powertrain()))
+        elif kind in ("safestop", "manual_override", "emergency_manual_override", "estop_button",
+                      "internal_error", "door", "partial_mode"):
+            field, value = kind, body
+            if kind == "door":
+                field, value = "door_open", body == "open"
+            self.devices = msgspec.structs.replace(self.devices, **{field: value})
+            out.append((Topic.SAFETY, self.devices))
+        elif kind == "actuator":
+            changes: dict[str, float] = {}
+            if body.throttle is not None:
+                changes["throttle_effectiveness"] = body.throttle.effectiveness
+            if body.brake is not None:
+                changes["brake_effectiveness"] = body.brake.effectiveness
+            if body.steering is not None:
+                changes["steering_rate_scale"] = body.steering.rate_scale
+            self.faults = msgspec.structs.replace(self.faults, **changes)
+            out.append((FAULTS_TOPIC, self.faults))
+        elif kind == "world":
+            changes_w: dict[str, Any] = {}
+            if body.friction is not None:
+                changes_w["friction"] = body.friction
+            if body.obstacles is not None:
+                changes_w["obstacles"] = tuple((o.x_m, o.y_m) for o in body.obstacles)
+            self.world = msgspec.structs.replace(self.world, **changes_w)
+            out.append((WORLD_TOPIC, self.world))
+        # "drop" is applied by ChannelFaults on the bus

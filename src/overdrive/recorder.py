@@ -1,0 +1,150 @@
+"""Recording a run: trace rows, the event list and peaks, observed from the bus.
+
+The recorder is a bus tap, not a node: it sees every message as published (before channel
+faults) and never feeds anything back into the stack. Speed-state, safety-mode and hint events
+are derived from state messages; faults, e-stops and rejections come from ``Notice`` messages.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from typing import IO, Any
+
+from overdrive.messages import Notice, Topic
+
+TRACE_COLUMNS = (
+    "t_s", "x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2", "lat_accel_mps2",
+    "curvature_1pm", "throttle_pct", "brake_pct", "steer_pct", "gear", "speed_state",
+    "safety_mode", "goal_speed_mps", "authorized_m",
+    # beyond the contract
+    "odometer_m", "pitch_rad", "throttle_cmd_pct", "brake_cmd_pct", "steer_cmd_pct", "engine",
+    "traction_control", "radar_range_m", "hint", "fault",
+)
+
+
+def _fmt(value: float | None) -> str:
+    if value is None or value != value:
+        return ""
+    return f"{value:.4f}"
+
+
+class Recorder:
+    def __init__(self, trace_file: IO[str] | None = None, keep_rows: bool = False) -> None:
+        self.latest: dict[str, Any] = {}
+        self.events: list[dict[str, Any]] = []
+        self.rows: list[dict[str, str]] | None = [] if keep_rows else None
+        self._writer = csv.writer(trace_file, lineterminator="\n") if trace_file else None
+        if self._writer:
+            self._writer.writerow(TRACE_COLUMNS)
+        self.now_s = 0.0
+        self.max_speed_mps = 0.0
+        self.max_accel_mps2 = 0.0
+        self.max_decel_mps2 = 0.0
+        self.max_lat_accel_mps2 = 0.0
+        self.contact_at_s: float | None = None
+        self.states_seen: set[str] = set()
+        self.modes_seen: set[str] = set()
+        self._speed_state: str | None = None
+        self._hint = "none"
+        self._safety_mode: str | None = None
+        self.counts: dict[str, int] = {}
+
+    # ------------------------------------------------------------------ bus tap
+
+    def observe(self, topic: str, msg: Any) -> None:
+        self.latest[topic] = msg
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+        if topic == Topic.NOTICE:
+            self._notice(msg)
+        elif topic == Topic.SPEED_STATE:
+            if msg.state != self._speed_state:
+                if self._speed_state is not None:
+                    self._event("speed_state", **{"from": self._speed_state, "to": msg.state})
+                self._speed_state = msg.state
+                self.states_seen.add(msg.state)
+            if msg.hint != self._hint:
+                if msg.hint != "none":
+                    self._event("hint", hint=msg.hint)
+                self._hint = msg.hint
+        elif topic == Topic.VEHICLE_STATUS:
+            if msg.safety_mode != self._safety_mode:
+                if self._safety_mode is not None:
+                    self._event("safety_mode", **{"from": self._safety_mode, "to": msg.safety_mode})
+                self._safety_mode = msg.safety_mode
+                self.modes_seen.add(msg.safety_mode)
+        elif topic == Topic.MOVE_REPLY and not msg.accepted:
+            self._event("rejected", command=msg.kind, reason=msg.code, message=msg.message,
+                        command_id=msg.command_id)
+
+    def _notice(self, msg: Notice) -> None:
+        fields: dict[str, Any] = {"source": msg.source}
+        if msg.kind == "fault":
+            fields["code"] = msg.code
+            fields["message"] = msg.reason
+        else:
+            if msg.code:
+                fields["code"] = msg.code
+            fields["reason"] = msg.reason
+        if msg.kind == "rejected" and "command" not in fields:
+            fields["command"] = msg.code or msg.source
+        self._event(msg.kind, **fields)
+
+    def _event(self, kind: str, **fields: Any) -> None:
+        self.events.append({"t_s": round(self.now_s, 4), "kind": kind, **fields})
+
+    # ------------------------------------------------------------------ per tick
+
+    def tick(self, now_s: float) -> None:
+        """Write one trace row for time ``now_s`` from the latest messages."""
+        self.now_s = now_s
+        latest = self.latest
+        truth = latest.get(Topic.TRUTH)
+        if truth is None:
+            return
+        speed = abs(truth.speed_mps)
+        if speed > self.max_speed_mps:
+            self.max_speed_mps = speed
+        a = truth.accel_mps2 if truth.speed_mps >= 0 else -truth.accel_mps2
+        if a > self.max_accel_mps2:
+            self.max_accel_mps2 = a
+        if -a > self.max_decel_mps2:
+            self.max_decel_mps2 = -a
+        lat = abs(truth.lat_accel_mps2)
+        if lat > self.max_lat_accel_mps2:
+            self.max_lat_accel_mps2 = lat
+        if truth.contact and self.contact_at_s is None:
+            self.contact_at_s = now_s
+            self._event("contact", reason="vehicle footprint touched an obstacle")
+        if self._writer is None and self.rows is None:
+            return
+        status = latest.get(Topic.VEHICLE_STATUS)
+        speed_state = latest.get(Topic.SPEED_STATE)
+        driving = latest.get(Topic.DRIVING_STATUS)
+        pedals = latest.get(Topic.PEDALS)
+        steer = latest.get(Topic.STEER)
+        radar = latest.get(Topic.RADAR)
+        row = (
+            f"{now_s:.2f}", _fmt(truth.x_m), _fmt(truth.y_m), _fmt(truth.heading_rad),
+            _fmt(truth.speed_mps), _fmt(truth.accel_mps2), _fmt(truth.lat_accel_mps2),
+            _fmt(truth.curvature_1pm),
+            _fmt(status.throttle_pct) if status else "", _fmt(status.brake_pct) if status else "",
+            _fmt(status.steer_pct) if status else "", status.gear if status else "",
+            speed_state.state if speed_state else "", status.safety_mode if status else "",
+            _fmt(driving.goal_speed_mps) if driving else "",
+            _fmt(driving.authorized_m) if driving else "",
+            _fmt(truth.odometer_m), _fmt(truth.pitch_rad),
+            _fmt(pedals.throttle_pct) if pedals else "", _fmt(pedals.brake_pct) if pedals else "",
+            _fmt(steer.steer_pct) if steer else "", status.engine if status else "",
+            "1" if status and status.traction_control else "0",
+            _fmt(radar.range_m) if radar and radar.target else "",
+            speed_state.hint if speed_state else "", str(speed_state.fault) if speed_state else "",
+        )
+        if self._writer is not None:
+            self._writer.writerow(row)
+        if self.rows is not None:
+            self.rows.append(dict(zip(TRACE_COLUMNS, row, strict=True)))
+
+
+def finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None

@@ -1,0 +1,324 @@
+"""Scenario files: schema, validation and loading.
+
+The schema is a set of frozen msgspec Structs, so a file is type-checked, range-checked and
+checked for unknown keys in one pass. Every number carries bounds, which also rejects NaN and
+infinities. Errors become ``ScenarioError`` with the file, the field path and the reason.
+The full reference is docs/scenarios.md.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import msgspec
+import yaml
+
+from overdrive.vehicle.presets import VehicleParams, VehicleSpecError, vehicle_from_spec
+
+# Bounds: generous physical limits, chosen to catch typos and unit mistakes, not to restrict use.
+Time = Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)]          # within a day
+Duration = Annotated[float, msgspec.Meta(gt=0.0, le=86_400.0)]
+Distance = Annotated[float, msgspec.Meta(ge=0.0, le=100_000.0)]     # 100 km per command
+Coordinate = Annotated[float, msgspec.Meta(ge=-100_000.0, le=100_000.0)]
+Speed = Annotated[float, msgspec.Meta(ge=0.0, le=70.0)]              # above any road vehicle here
+Accel = Annotated[float, msgspec.Meta(gt=0.0, le=20.0)]              # 2 g
+Curvature = Annotated[float, msgspec.Meta(ge=-10.0, le=10.0)]        # 0.1 m radius: beyond any car
+Percent = Annotated[float, msgspec.Meta(ge=0.0, le=100.0)]
+SignedPercent = Annotated[float, msgspec.Meta(ge=-100.0, le=100.0)]
+Grade = Annotated[float, msgspec.Meta(ge=-100.0, le=100.0)]          # 45 degrees
+Friction = Annotated[float, msgspec.Meta(gt=0.0, le=1.5)]            # racing slicks reach ~1.5
+Fraction = Annotated[float, msgspec.Meta(ge=0.0, le=1.0)]
+Scale = Annotated[float, msgspec.Meta(ge=0.0, le=2.0)]
+Name = Annotated[str, msgspec.Meta(min_length=1, max_length=64)]
+
+
+class Spec(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    pass
+
+
+class GradeSegment(Spec, frozen=True):
+    from_m: Coordinate
+    grade_percent: Grade
+
+
+class Obstacle(Spec, frozen=True):
+    x_m: Coordinate
+    y_m: Coordinate
+
+
+class WorldSpec(Spec, frozen=True):
+    grade_percent: Grade | list[GradeSegment] = 0.0
+    friction: Friction = 0.8
+    obstacles: list[Obstacle] = []
+    roughness_mps2: Annotated[float, msgspec.Meta(ge=0.0, le=20.0)] = 0.0
+
+
+class MoveSpec(Spec, frozen=True):
+    distance_m: Distance
+    maxspeed_mps: Speed
+    curvature_1pm: Curvature = 0.0
+
+
+class Empty(Spec, frozen=True):
+    pass
+
+
+class AdvanceSpec(Spec, frozen=True):
+    source: Name
+    distance_m: Distance
+    reverse: bool = False
+
+
+class MaxSpeedSpec(Spec, frozen=True):
+    source: Name
+    speed_mps: Speed
+
+
+class SetSpeedSpec(Spec, frozen=True):
+    speed_mps: Speed
+    accel_mps2: Accel
+    gear: Name
+    state: Name
+    fault: Annotated[int, msgspec.Meta(ge=0, le=65535)] = 0
+
+
+class SteerSpec(Spec, frozen=True):
+    curvature_1pm: Curvature
+
+
+class ActuatorsSpec(Spec, frozen=True):
+    throttle_pct: Percent = 0.0
+    brake_pct: Percent = 0.0
+    steer_pct: SignedPercent = 0.0
+
+
+Channel = Literal["set_speed", "steering", "pedals", "radar", "gps", "imu", "wheel_speed",
+                  "speed_state", "move", "advance", "max_speed", "jaus"]
+
+
+class DropSpec(Spec, frozen=True):
+    channel: Channel
+    for_s: Duration
+
+
+class EffectivenessSpec(Spec, frozen=True):
+    effectiveness: Scale = 1.0
+
+
+class SteeringFaultSpec(Spec, frozen=True):
+    rate_scale: Scale = 1.0
+
+
+class ActuatorFaultSpec(Spec, frozen=True):
+    throttle: EffectivenessSpec | None = None
+    brake: EffectivenessSpec | None = None
+    steering: SteeringFaultSpec | None = None
+
+
+class WorldChangeSpec(Spec, frozen=True):
+    friction: Friction | None = None
+    obstacles: list[Obstacle] | None = None
+
+
+class EventSpec(Spec, frozen=True):
+    """One timed event: ``at_s`` plus exactly one kind."""
+
+    at_s: Time
+    move: MoveSpec | None = None
+    reverse: MoveSpec | None = None
+    stop: Empty | None = None
+    advance: AdvanceSpec | None = None
+    max_speed: MaxSpeedSpec | None = None
+    set_speed: SetSpeedSpec | None = None
+    steer: SteerSpec | None = None
+    actuators: ActuatorsSpec | None = None
+    gear: Name | None = None
+    engine: Literal["on", "off"] | None = None
+    safestop: Literal["run", "pause", "stop"] | None = None
+    manual_override: bool | None = None
+    emergency_manual_override: bool | None = None
+    estop_button: bool | None = None
+    internal_error: bool | None = None
+    door: Literal["open", "closed"] | None = None
+    partial_mode: Literal["full", "manual-steering", "manual-speed"] | None = None
+    drop: DropSpec | None = None
+    actuator: ActuatorFaultSpec | None = None
+    world: WorldChangeSpec | None = None
+
+    @property
+    def kind(self) -> str:
+        return next(f for f in self.__struct_fields__[1:] if getattr(self, f) is not None)
+
+    @property
+    def body(self) -> Any:
+        return getattr(self, self.kind)
+
+
+EVENT_KINDS = EventSpec.__struct_fields__[1:]
+OPEN_LOOP_KINDS = frozenset({"actuators", "gear", "engine"})
+SPEED_KINDS = frozenset({"set_speed"})
+DRIVING_KINDS = frozenset({"advance", "max_speed", "steer"})
+MOVE_KINDS = frozenset({"move", "reverse", "stop"})
+
+
+class Window(Spec, frozen=True):
+    kind: Name
+    within_s: tuple[Time, Time] | None = None
+    match: dict[str, str | float | int | bool] = {}
+
+
+class PositionSpec(Spec, frozen=True):
+    x_m: Coordinate
+    y_m: Coordinate
+    tolerance_m: Annotated[float, msgspec.Meta(gt=0.0, le=1000.0)]
+
+
+Bound = Annotated[float, msgspec.Meta(ge=-1e6, le=1e6)]
+
+
+class ExpectSpec(Spec, frozen=True):
+    """One expectation; exactly one field set. See docs/scenarios.md."""
+
+    final_speed_below_mps: Bound | None = None
+    odometer_between_m: tuple[Bound, Bound] | None = None
+    final_position: PositionSpec | None = None
+    peak_speed_below_mps: Bound | None = None
+    peak_accel_below_mps2: Bound | None = None
+    peak_decel_below_mps2: Bound | None = None
+    peak_lat_accel_below_mps2: Bound | None = None
+    event: Window | None = None
+    no_event: Window | None = None
+    speed_state_reached: Name | None = None
+    safety_mode_reached: Name | None = None
+    final_speed_state: Name | None = None
+    final_safety_mode: Name | None = None
+    no_contact: bool | None = None
+
+    @property
+    def kind(self) -> str:
+        return next(f for f in self.__struct_fields__ if getattr(self, f) is not None)
+
+
+class ScenarioFile(Spec, frozen=True):
+    name: Name
+    description: str = ""
+    vehicle: str | dict[str, Any] = "escape-hybrid"
+    interface: Literal["embedded", "jaus"] = "embedded"
+    control: Literal["wrench", "motion-profile"] = "wrench"
+    start: Literal["parked", "ready"] = "parked"
+    seed: Annotated[int, msgspec.Meta(ge=0, le=2**63 - 1)] = 1
+    duration_s: Duration = 60.0
+    world: WorldSpec = WorldSpec()
+    events: list[EventSpec] = []
+    expect: list[ExpectSpec] = []
+
+
+class Scenario(msgspec.Struct, frozen=True):
+    """A validated scenario: the file's content plus resolved vehicle parameters."""
+
+    spec: ScenarioFile
+    vehicle: VehicleParams
+    source: str
+    events: tuple[EventSpec, ...]     # sorted by time, stable for equal times
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def event_kinds(self) -> frozenset[str]:
+        return frozenset(e.kind for e in self.events)
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario: ``str()`` is ``"<source>: <field>: <reason>"``."""
+
+    def __init__(self, source: str, field: str, reason: str) -> None:
+        self.source, self.field, self.reason = source, field, reason
+        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
+
+
+_AT = re.compile(r"^(?P<msg>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
+_UNKNOWN = re.compile(r"Object contains unknown field `(?P<field>[^`]+)`")
+
+
+def _split_validation_error(exc: msgspec.ValidationError) -> tuple[str, str]:
+    m = _AT.match(str(exc))
+    assert m is not None
+    msg, path = m.group("msg"), (m.group("path") or "").lstrip(".")
+    unknown = _UNKNOWN.match(msg)
+    if unknown:
+        field = unknown.group("field")
+        return (f"{path}.{field}" if path else field), "unknown field"
+    return path or "(top level)", msg[0].lower() + msg[1:] if msg else "invalid"
+
+
+def _check_finite(value: Any, path: str, source: str) -> None:
+    """Reject NaN/inf anywhere in raw data (bounds catch most, this catches the rest)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ScenarioError(source, path or "(top level)", f"must be a finite number, got {value}")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_finite(v, f"{path}.{k}" if path else str(k), source)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _check_finite(v, f"{path}[{i}]", source)
+
+
+def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
+    """Validate raw data (as loaded from YAML) into a Scenario, or raise ScenarioError."""
+    if not isinstance(data, dict):
+        raise ScenarioError(source, "", "a scenario must be a mapping of keys to values")
+    _check_finite(data, "", source)
+    try:
+        spec = msgspec.convert(data, ScenarioFile, strict=True)
+    except msgspec.ValidationError as exc:
+        field, reason = _split_validation_error(exc)
+        raise ScenarioError(source, field, reason) from None
+    for i, event in enumerate(spec.events):
+        present = [f for f in EVENT_KINDS if getattr(event, f) is not None]
+        if len(present) != 1:
+            what = "no event kind" if not present else f"several event kinds ({', '.join(present)})"
+            raise ScenarioError(source, f"events[{i}]",
+                                f"{what}; each event needs at_s and exactly one of: "
+                                + ", ".join(EVENT_KINDS))
+        if event.at_s > spec.duration_s:
+            raise ScenarioError(source, f"events[{i}].at_s",
+                                f"{event.at_s} s is after the end of the run (duration_s {spec.duration_s})")
+    for i, exp in enumerate(spec.expect):
+        present = [f for f in ExpectSpec.__struct_fields__ if getattr(exp, f) is not None]
+        if len(present) != 1:
+            raise ScenarioError(source, f"expect[{i}]", "each expectation needs exactly one kind")
+    try:
+        vehicle = vehicle_from_spec(spec.vehicle)
+    except VehicleSpecError as exc:
+        field = f"vehicle.{exc.field}" if isinstance(spec.vehicle, dict) and exc.field else "vehicle"
+        raise ScenarioError(source, field, exc.reason) from None
+    for i, event in enumerate(spec.events):
+        if event.set_speed is not None and event.set_speed.gear not in vehicle.gear_names:
+            raise ScenarioError(source, f"events[{i}].set_speed.gear",
+                                f"{vehicle.preset} has no gear {event.set_speed.gear!r} "
+                                f"(gears: {', '.join(vehicle.gear_names)})")
+        if event.gear is not None and event.gear not in vehicle.gear_names:
+            raise ScenarioError(source, f"events[{i}].gear",
+                                f"{vehicle.preset} has no gear {event.gear!r} "
+                                f"(gears: {', '.join(vehicle.gear_names)})")
+    events = tuple(sorted(spec.events, key=lambda e: e.at_s))
+    return Scenario(spec=spec, vehicle=vehicle, source=source, events=events)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a YAML scenario file."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ScenarioError(str(path), "", f"not valid YAML: {exc}".replace("\n", " ")) from None
+    return parse_scenario(data, str(path))

@@ -1,0 +1,193 @@
+"""Running a scenario against the simulated vehicle and writing the run folder.
+
+This is the runtime edge for ``overdrive sim``: it composes the nodes a scenario needs, steps
+them on the lock-step runtime, reads the wall clock (only for ``--realtime`` pacing and the
+real-time factor), and writes ``summary.json``, ``trace.csv`` and ``plot.png``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from overdrive.bus.local import LocalBus
+from overdrive.expect import check
+from overdrive.messages import Topic
+from overdrive.player import ChannelFaults, ScenarioPlayer, world_from_spec
+from overdrive.recorder import Recorder
+from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
+from overdrive.scenario import (
+    DRIVING_KINDS,
+    MOVE_KINDS,
+    OPEN_LOOP_KINDS,
+    SPEED_KINDS,
+    Scenario,
+    ScenarioError,
+)
+from overdrive.vehicle.sim_node import VehicleSim
+
+SERVER_MODULES = {
+    "speed": ("overdrive.servers.speed", "SpeedServer", "the speed server (set_speed)"),
+    "driving": ("overdrive.servers.driving", "DrivingModule", "the driving module"),
+    "move": ("overdrive.servers.move", "MoveServer", "the move server"),
+}
+
+
+@dataclass
+class RunResult:
+    summary: dict[str, Any]
+    exit_code: int
+    out_dir: Path | None = None
+    trace: list[dict[str, str]] | None = None
+    nodes: dict[str, Node] = field(default_factory=dict)
+
+
+def _server(key: str, scenario: Scenario, kind_hint: str) -> type:
+    module_name, class_name, what = SERVER_MODULES[key]
+    try:
+        module = importlib.import_module(module_name)
+        return getattr(module, class_name)
+    except (ImportError, AttributeError):
+        index = next((i for i, e in enumerate(scenario.spec.events) if e.kind == kind_hint), 0)
+        raise ScenarioError(scenario.source, f"events[{index}].{kind_hint}",
+                            f"not supported yet: {what} is not part of this build") from None
+
+
+def build_nodes(scenario: Scenario) -> list[Node]:
+    """The nodes a scenario needs, in tick order (vehicle first). Raises ScenarioError."""
+    spec = scenario.spec
+    kinds = scenario.event_kinds
+    if spec.interface != "embedded":
+        raise ScenarioError(scenario.source, "interface",
+                            "not supported yet: 'jaus' needs the XGV client; use 'embedded'")
+    if spec.control != "wrench":
+        raise ScenarioError(scenario.source, "control",
+                            "not supported yet: 'motion-profile' needs the XGV's motion profile "
+                            "driver; use 'wrench'")
+    closed_loop = kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS)
+    if kinds & OPEN_LOOP_KINDS and closed_loop:
+        raise ScenarioError(scenario.source, "events",
+                            "open-loop events (actuators, gear, engine) cannot be mixed with "
+                            f"server events ({', '.join(sorted(closed_loop))})")
+    if kinds & SPEED_KINDS and kinds & (DRIVING_KINDS | MOVE_KINDS):
+        raise ScenarioError(scenario.source, "events",
+                            "set_speed makes the scenario the speed server's client; it cannot be "
+                            "mixed with move/advance/max_speed/steer, whose client is the driving module")
+    params = scenario.vehicle
+    ready = spec.start == "ready"
+    nodes: list[Node] = [VehicleSim(params, world_from_spec(spec.world), spec.seed, ready=ready),
+                         ScenarioPlayer(scenario)]
+    if kinds & MOVE_KINDS:
+        hint = next(k for k in ("move", "reverse", "stop") if k in kinds)
+        nodes.append(_server("move", scenario, hint)(params))
+    if kinds & (DRIVING_KINDS | MOVE_KINDS):
+        hint = next(k for k in ("move", "reverse", "stop", "advance", "max_speed", "steer") if k in kinds)
+        nodes.append(_server("driving", scenario, hint)(params, friction=spec.world.friction))
+    if kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS):
+        hint = "set_speed" if "set_speed" in kinds else next(iter(sorted(closed_loop)))
+        speed_cls = _server("speed", scenario, hint)
+        nodes.append(speed_cls(params, initial_state="run" if ready else "parked",
+                               initial_gear=params.drive_gear if ready else None))
+    return nodes
+
+
+def default_out_dir(scenario: Scenario) -> Path:
+    return Path("runs") / f"{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+
+def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_trace: bool = True,
+                 realtime: bool = False, plot: bool = True,
+                 progress: Callable[[float, float], None] | None = None,
+                 period_s: float = DEFAULT_PERIOD_S) -> RunResult:
+    """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given."""
+    nodes = build_nodes(scenario)
+    bus = LocalBus()
+    faults = ChannelFaults(scenario)
+    bus.filter = faults.admit
+    out_path = Path(out_dir) if out_dir is not None else None
+    with contextlib.ExitStack() as stack:
+        trace_file = None
+        if out_path is not None:
+            out_path.mkdir(parents=True, exist_ok=True)
+            trace_file = stack.enter_context(
+                open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
+        recorder = Recorder(trace_file, keep_rows=keep_trace)
+        bus.tap(recorder.observe)
+        runtime = LockstepRuntime(nodes, bus, period_s)
+        duration_s = scenario.spec.duration_s
+        wall_start = time.monotonic()
+        end_tick = round(duration_s / period_s)
+        report_every = max(1, end_tick // 200)
+        while runtime.tick <= end_tick:
+            faults.now_s = runtime.tick * period_s
+            now_s = runtime.step()
+            recorder.tick(now_s)
+            if realtime:
+                lag = now_s - (time.monotonic() - wall_start)
+                if lag > 0:
+                    time.sleep(lag)
+            if progress is not None and runtime.tick % report_every == 0:
+                progress(now_s, duration_s)
+        wall_time_s = time.monotonic() - wall_start
+    summary = make_summary(scenario, recorder, runtime.now_s - period_s, wall_time_s, nodes)
+    exit_code = 1 if summary["violations"] else 0
+    if out_path is not None:
+        (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        if plot:
+            from overdrive.plot import plot_run
+            plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
+    return RunResult(summary=summary, exit_code=exit_code, out_dir=out_path,
+                     trace=recorder.rows, nodes={n.name: n for n in nodes})
+
+
+def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,
+                 nodes: list[Node]) -> dict[str, Any]:
+    p = scenario.vehicle
+    truth = rec.latest.get(Topic.TRUTH)
+    status = rec.latest.get(Topic.VEHICLE_STATUS)
+    speed_state = rec.latest.get(Topic.SPEED_STATE)
+    vehicle_node = next(n for n in nodes if isinstance(n, VehicleSim))
+    summary: dict[str, Any] = {
+        "name": scenario.name,
+        "scenario": scenario.source,
+        "seed": scenario.spec.seed,
+        "sim_time_s": round(sim_time_s, 3),
+        "wall_time_s": round(wall_time_s, 3),
+        "real_time_factor": round(sim_time_s / wall_time_s, 1) if wall_time_s > 0 else None,
+        "vehicle": {"preset": p.preset, "length_m": p.length_m, "width_m": p.width_m,
+                    "wheelbase_m": p.wheelbase_m, "rear_overhang_m": p.rear_overhang_m},
+        "odometer_m": round(truth.odometer_m, 4) if truth else 0.0,
+        "final": {
+            "x_m": round(truth.x_m, 4) if truth else 0.0,
+            "y_m": round(truth.y_m, 4) if truth else 0.0,
+            "heading_rad": round(truth.heading_rad, 5) if truth else 0.0,
+            "speed_mps": round(truth.speed_mps, 4) if truth else 0.0,
+            "gear": status.gear if status else None,
+            "speed_state": speed_state.state if speed_state else None,
+            "safety_mode": status.safety_mode if status else None,
+        },
+        "peaks": {
+            "max_speed_mps": round(rec.max_speed_mps, 4),
+            "max_accel_mps2": round(rec.max_accel_mps2, 4),
+            "max_decel_mps2": round(rec.max_decel_mps2, 4),
+            "max_lateral_accel_mps2": round(rec.max_lat_accel_mps2, 4),
+        },
+        "gate_interventions": dict(sorted(vehicle_node.gate_interventions.items())),
+        "events": rec.events,
+        "violations": [],
+    }
+    violations: list[str] = []
+    if rec.contact_at_s is not None:
+        violations.append(f"contact: the vehicle touched an obstacle at t={rec.contact_at_s:.2f} s")
+    for expect in scenario.spec.expect:
+        failure = check(expect, summary, rec.states_seen, rec.modes_seen)
+        if failure:
+            violations.append(failure)
+    summary["violations"] = violations
+    return summary

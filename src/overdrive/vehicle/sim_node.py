@@ -1,0 +1,187 @@
+"""The simulated vehicle as a node: command gate, safety modes, plant, sensors.
+
+Stands where a real drive-by-wire vehicle would: it accepts actuator commands only from the
+sources allowed to command it, passes them through the command gate, lets the safety devices
+override them (seed 000 behaviour), integrates the plant, and publishes sensor readings with
+seeded noise. It is the first node of every tick, so it integrates the 10 ms that just passed
+under the commands received before it.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Sequence
+from typing import Any
+
+from overdrive.messages import (
+    GpsIns,
+    Imu,
+    Notice,
+    PedalCommand,
+    PowertrainCommand,
+    Radar,
+    SafetyDevices,
+    SteerCommand,
+    Topic,
+    Truth,
+    VehicleStatus,
+    WheelSpeed,
+)
+from overdrive.vehicle.gate import GateLimits, gate_pedals, gate_steer
+from overdrive.vehicle.modes import PAUSE_MODES, computer_axes, safety_mode
+from overdrive.vehicle.plant import STOPPED_MPS, ActuatorFaults, Plant, World
+from overdrive.vehicle.presets import G_MPS2, VehicleParams
+
+PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration" (seed 000); XGV default-like
+PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort
+DRIVER_BRAKE_PCT = 30.0      # simulated safety driver under manual override: firm, controlled stop
+WORLD_TOPIC = "sim/world"    # scenario -> simulator: replace the World (obstacles moved, friction...)
+FAULTS_TOPIC = "sim/faults"  # scenario -> simulator: ActuatorFaults
+
+
+class VehicleSim:
+    name = "vehicle"
+    period_s = 0.01
+    subscriptions = (Topic.PEDALS, Topic.STEER, Topic.POWERTRAIN, Topic.SAFETY, WORLD_TOPIC,
+                     FAULTS_TOPIC)
+
+    def __init__(self, params: VehicleParams, world: World, seed: int, *, ready: bool = False,
+                 limits: GateLimits | None = None) -> None:
+        self.params = params
+        self.plant = Plant(params, world, random.Random(f"{seed}/engine"),
+                           engine_running=ready, gear=params.drive_gear if ready else None)
+        self.noise = random.Random(f"{seed}/sensors")
+        self.limits = limits or GateLimits(
+            steer_rate_pct_per_s=100.0 * params.steer_rate_rps / params.max_steer_rad)
+        self.devices = SafetyDevices()
+        self.throttle_pct = 0.0
+        self.brake_pct = 0.0 if ready else 100.0
+        self.steer_pct = 0.0
+        self.applied_steer_pct = 0.0
+        self.gear_cmd = self.plant.gear
+        self.engine_on = ready
+        self.park_brake = not ready
+        self.last_now_s: float | None = None
+        self.rejected_sources = 0
+        self.gate_interventions: dict[str, int] = {}
+        self.mode = safety_mode(self.devices)
+
+    # ------------------------------------------------------------------ inputs
+
+    def _receive(self, inbox: Sequence[tuple[str, Any]], out: list) -> None:
+        lim = self.limits
+        for topic, msg in inbox:
+            if topic == Topic.PEDALS:
+                if msg.source in lim.pedal_sources:
+                    self.throttle_pct, self.brake_pct = msg.throttle_pct, msg.brake_pct
+                else:
+                    self._reject(msg, out)
+            elif topic == Topic.STEER:
+                if msg.source in lim.steer_sources:
+                    self.steer_pct = msg.steer_pct
+                else:
+                    self._reject(msg, out)
+            elif topic == Topic.POWERTRAIN:
+                if msg.source in lim.powertrain_sources:
+                    self.gear_cmd, self.engine_on = msg.gear, msg.engine_on
+                    self.park_brake = msg.park_brake
+                else:
+                    self._reject(msg, out)
+            elif topic == Topic.SAFETY:
+                self.devices = msg
+            elif topic == WORLD_TOPIC:
+                self.plant.world = msg
+            elif topic == FAULTS_TOPIC:
+                self.plant.faults = msg
+
+    def _reject(self, msg: PedalCommand | SteerCommand | PowertrainCommand, out: list) -> None:
+        self.rejected_sources += 1
+        out.append((Topic.NOTICE, Notice(kind="rejected", source=self.name,
+                                         code="no_control",
+                                         reason=f"{type(msg).__name__} from {msg.source!r}")))
+
+    # ------------------------------------------------------------------ step
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        self._receive(inbox, out)
+        dt_s = 0.0 if self.last_now_s is None else now_s - self.last_now_s
+        self.last_now_s = now_s
+        plant = self.plant
+
+        throttle, brake, reason = gate_pedals(self.throttle_pct, self.brake_pct)
+        if reason:
+            self._count(reason)
+        steer, reason = gate_steer(self.steer_pct, self.applied_steer_pct, self.limits, dt_s)
+        if reason and reason != "steer rate":
+            self._count(reason)
+
+        self.mode = mode = safety_mode(self.devices)
+        computer_steers, computer_speed = computer_axes(mode, self.devices.partial_mode)
+        stopped = abs(plant.speed_mps) < STOPPED_MPS
+        engine_on = self.engine_on
+        gear = self.gear_cmd
+        if not computer_steers:
+            steer = self.applied_steer_pct          # the human holds the wheel where it is
+        if mode in PAUSE_MODES:
+            throttle = 0.0
+            pause_pct = 100.0 * PAUSE_DECEL_MPS2 / self.params.max_brake_decel_mps2
+            brake = PAUSE_HOLD_BRAKE_PCT if stopped else max(brake, pause_pct)
+        elif mode == "estop-disable":
+            throttle, brake, engine_on = 0.0, 100.0, False
+            gear = plant.gear
+        elif not computer_speed:
+            throttle, brake = 0.0, DRIVER_BRAKE_PCT
+            gear = plant.gear
+        self.applied_steer_pct = steer
+
+        if dt_s > 0.0:
+            plant.step(dt_s, throttle, brake, steer, gear, engine_on, self.park_brake)
+        out.extend(self._sensors(computer_steers, computer_speed))
+        return out
+
+    def _count(self, reason: str) -> None:
+        self.gate_interventions[reason] = self.gate_interventions.get(reason, 0) + 1
+
+    def _sensors(self, computer_steers: bool, computer_speed: bool) -> list[tuple[str, Any]]:
+        p, plant, rng = self.params, self.plant, self.noise
+        gauss = rng.gauss
+        c, s = math.cos(plant.pitch_rad), math.sin(plant.pitch_rad)
+        target, range_m, closing = plant.radar()
+        road_wheel = plant.road_wheel_rad
+        status = VehicleStatus(
+            gear=plant.gear, shifting=plant.shift_target is not None, engine=plant.engine,
+            engine_rpm=plant.engine_rpm, start_failed=plant.start_failed,
+            traction_control=plant.slip,
+            steer_pct=100.0 * road_wheel / p.max_steer_rad,
+            throttle_pct=100.0 * plant.throttle, brake_pct=100.0 * plant.brake,
+            safety_mode=self.mode, computer_speed=computer_speed,
+            computer_steering=computer_steers)
+        yaw_rate = -plant.speed_mps * plant.curvature_1pm
+        return [
+            (Topic.VEHICLE_STATUS, status),
+            (Topic.WHEEL_SPEED, WheelSpeed(
+                speed_mps=plant.wheel_speed_mps + gauss(0.0, p.speed_noise_mps))),
+            (Topic.GPS_INS, GpsIns(
+                x_m=plant.x_m + gauss(0.0, p.gps_noise_m),
+                y_m=plant.y_m + gauss(0.0, p.gps_noise_m),
+                heading_rad=plant.heading_rad, speed_mps=plant.speed_mps + gauss(0.0, p.speed_noise_mps),
+                pitch_rad=plant.pitch_rad, roll_rad=plant.roll_rad,
+                odometer_m=plant.odometer_m)),
+            (Topic.IMU, Imu(
+                accel_x_mps2=plant.accel_mps2 + G_MPS2 * s + gauss(0.0, p.accel_noise_mps2),
+                accel_y_mps2=-plant.lat_accel_mps2 + gauss(0.0, p.accel_noise_mps2),
+                accel_z_mps2=G_MPS2 * c + gauss(0.0, p.accel_noise_mps2 + plant.world.roughness_mps2),
+                yaw_rate_rps=yaw_rate)),
+            (Topic.RADAR, Radar(target=target, range_m=range_m, closing_speed_mps=closing)),
+            (Topic.TRUTH, Truth(
+                x_m=plant.x_m, y_m=plant.y_m, heading_rad=plant.heading_rad,
+                speed_mps=plant.speed_mps, accel_mps2=plant.accel_mps2,
+                lat_accel_mps2=plant.lat_accel_mps2, curvature_1pm=plant.curvature_1pm,
+                pitch_rad=plant.pitch_rad, roll_rad=plant.roll_rad, odometer_m=plant.odometer_m,
+                slip=plant.slip, contact=plant.contact())),
+        ]
+
+
+__all__ = ["ActuatorFaults", "VehicleSim", "World"]
