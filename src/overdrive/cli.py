@@ -92,11 +92,11 @@ def print_summary(summary: dict, out: Path) -> None:
                   f"{peaks['max_lateral_accel_mps2']:.2f} m/s^2"),
         ("events", str(len(summary["events"]))),
         ("violations", "none" if not summary["violations"] else "\n".join(summary["violations"])),
-        ("results", str(out)),
     ]
     for key, value in rows:
         table.add_row(key, value)
     console.print(table)
+    click.echo(f"results: {out}")
 
 
 def _register_optional() -> None:

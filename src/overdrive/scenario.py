@@ -243,16 +243,18 @@ class ScenarioError(ValueError):
 
 _AT = re.compile(r"^(?P<msg>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
 _UNKNOWN = re.compile(r"Object contains unknown field `(?P<field>[^`]+)`")
+_MISSING = re.compile(r"Object missing required field `(?P<field>[^`]+)`")
 
 
 def _split_validation_error(exc: msgspec.ValidationError) -> tuple[str, str]:
     m = _AT.match(str(exc))
     assert m is not None
     msg, path = m.group("msg"), (m.group("path") or "").lstrip(".")
-    unknown = _UNKNOWN.match(msg)
-    if unknown:
-        field = unknown.group("field")
-        return (f"{path}.{field}" if path else field), "unknown field"
+    for pattern, reason in ((_UNKNOWN, "unknown field"), (_MISSING, "required field missing")):
+        found = pattern.match(msg)
+        if found:
+            field = found.group("field")
+            return (f"{path}.{field}" if path else field), reason
     return path or "(top level)", msg[0].lower() + msg[1:] if msg else "invalid"
 
 

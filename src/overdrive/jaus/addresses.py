@@ -56,7 +56,7 @@ class JausId(msgspec.Struct, frozen=True, order=True):
     def matches(self, other: JausId) -> bool:
         """True when a message sent to ``self`` reaches ``other`` (255 matches any part)."""
         return all(
-            a == b or a == BROADCAST or b == BROADCAST
+            BROADCAST in (a, b) or a == b
             for a, b in (
                 (self.subsystem, other.subsystem),
                 (self.node, other.node),

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any, ClassVar, Final, Literal, Self, TypeVar
 
@@ -112,13 +113,10 @@ def _jaus_id(value: int) -> JausId:
     return jaus_id
 
 
-def _id_value(jaus_id: JausId) -> int:
-    return jaus_id.subsystem << 24 | jaus_id.node << 16 | jaus_id.component << 8 | jaus_id.instance
-
-
-def _check_header(header: Header, payload_size: int) -> None:
+def _header_problem(header: Header, code: int, payload_size: int) -> str:
+    """Why a header cannot be encoded (the slow path, run only after the fast one failed)."""
     if not isinstance(header, Header):
-        raise JausEncodeError(f"header must be a Header, got {type(header).__name__}")
+        return f"header must be a Header, got {type(header).__name__}"
     for name, top in (
         ("priority", _MAX_PRIORITY),
         ("ack_nak", _MAX_ACK_NAK),
@@ -127,35 +125,50 @@ def _check_header(header: Header, payload_size: int) -> None:
     ):
         value = getattr(header, name)
         if not isinstance(value, int) or not 0 <= value <= top:
-            raise JausEncodeError(f"header {name} must be an integer 0..{top}, got {value!r}")
+            return f"header {name} must be an integer 0..{top}, got {value!r}"
     if header.data_flag not in _DATA_FLAGS:
-        raise JausEncodeError(f"header data_flag must be one of {sorted(_DATA_FLAGS)}")
+        return f"header data_flag must be one of {sorted(_DATA_FLAGS)}, got {header.data_flag!r}"
     for name in ("destination", "source"):
         if not isinstance(getattr(header, name), JausId):
-            raise JausEncodeError(f"header {name} must be a JausId")
+            return f"header {name} must be a JausId"
     if payload_size > MAX_PAYLOAD_SIZE:
-        raise JausEncodeError(
-            f"payload of {payload_size} bytes exceeds the {MAX_PAYLOAD_SIZE}-byte maximum"
-        )
+        return f"payload of {payload_size} bytes exceeds the {MAX_PAYLOAD_SIZE}-byte maximum"
+    return f"command code must be an integer 0..0xFFFF, got {code!r}"
 
 
 def encode_header(header: Header, code: int, experimental: bool, payload_size: int) -> bytes:
-    """The 16 header bytes (reference §1)."""
-    _check_header(header, payload_size)
-    if not isinstance(code, int) or not 0 <= code <= 0xFFFF:
-        raise JausEncodeError(f"command code must be an integer 0..0xFFFF, got {code!r}")
-    return _HEADER.pack(
-        header.priority
-        | header.ack_nak << 4
-        | (0x40 if header.service_connection else 0)
-        | (0x80 if experimental else 0),
-        header.version,
-        code,
-        _id_value(header.destination),
-        _id_value(header.source),
-        payload_size | header.data_flag << _FLAG_SHIFT,
-        header.sequence,
-    )
+    """The 16 header bytes (reference §1); raises JausEncodeError for out-of-range fields."""
+    try:
+        priority = header.priority
+        ack_nak = header.ack_nak
+        version = header.version
+        data_flag = header.data_flag
+        dst = header.destination
+        src = header.source
+        if (
+            priority >> 4  # 4 bits
+            or ack_nak >> 2  # 2 bits
+            or version >> 6  # 6 bits
+            or data_flag not in _DATA_FLAGS
+            or payload_size > MAX_PAYLOAD_SIZE
+            or type(dst) is not JausId
+            or type(src) is not JausId
+        ):
+            raise JausEncodeError(_header_problem(header, code, payload_size))
+        return _HEADER.pack(
+            priority
+            | ack_nak << 4
+            | (0x40 if header.service_connection else 0)
+            | (0x80 if experimental else 0),
+            version,
+            code,
+            dst.subsystem << 24 | dst.node << 16 | dst.component << 8 | dst.instance,
+            src.subsystem << 24 | src.node << 16 | src.component << 8 | src.instance,
+            payload_size | data_flag << _FLAG_SHIFT,
+            header.sequence,
+        )
+    except (AttributeError, TypeError, struct.error):
+        raise JausEncodeError(_header_problem(header, code, payload_size)) from None
 
 
 def decode_header(data: bytes | bytearray | memoryview) -> tuple[Header, int, bool, int]:
@@ -222,38 +235,42 @@ class ScaledInt:
     Decoded values are clamped to [lo, hi].
     """
 
-    __slots__ = ("bias", "fmt", "hi", "kind", "lo", "scale")
+    __slots__ = ("bias", "fmt", "from_raw", "hi", "kind", "lo", "scale", "to_raw")
 
     def __init__(self, kind: ScaledKind, lo: float, hi: float) -> None:
         value_range, signed, fmt = _RANGES[kind]
         self.kind = kind
-        self.lo = float(lo)
-        self.hi = float(hi)
-        self.scale = (self.hi - self.lo) / value_range
-        self.bias = (self.hi + self.lo) / 2.0 if signed else self.lo
+        self.lo = lo = float(lo)
+        self.hi = hi = float(hi)
+        self.scale = scale = (hi - lo) / value_range
+        self.bias = bias = (hi + lo) / 2.0 if signed else lo
         self.fmt = fmt
+
+        # closures over locals: these run per field per message, so no attribute lookups
+        def to_raw(value: float) -> int:
+            """Encode one value (clamped to [lo, hi]); NaN and infinities raise."""
+            if not _isfinite(value):
+                raise JausEncodeError(f"cannot encode non-finite value {value!r}")
+            if value < lo:
+                value = lo
+            elif value > hi:
+                value = hi
+            return int((value - bias) / scale + 0.5)
+
+        def from_raw(raw: int) -> float:
+            """Decode one raw integer to the centre of its encoding interval, within [lo, hi]."""
+            value = (raw if raw >= 0 else raw - 1) * scale + bias
+            if value < lo:
+                return lo
+            if value > hi:
+                return hi
+            return value
+
+        self.to_raw: Callable[[float], int] = to_raw
+        self.from_raw: Callable[[int], float] = from_raw
 
     def __repr__(self) -> str:
         return f"ScaledInt({self.kind!r}, {self.lo!r}, {self.hi!r})"
-
-    def to_raw(self, value: float) -> int:
-        """Encode one value (clamped to [lo, hi]); NaN and infinities raise JausEncodeError."""
-        if not _isfinite(value):
-            raise JausEncodeError(f"cannot encode non-finite value {value!r}")
-        if value < self.lo:
-            value = self.lo
-        elif value > self.hi:
-            value = self.hi
-        return int((value - self.bias) / self.scale + 0.5)
-
-    def from_raw(self, raw: int) -> float:
-        """Decode one raw integer to the centre of its encoding interval, within [lo, hi]."""
-        value = (raw if raw >= 0 else raw - 1) * self.scale + self.bias
-        if value < self.lo:
-            return self.lo
-        if value > self.hi:
-            return self.hi
-        return value
 
     def from_raw_openjaus(self, raw: int) -> float:
         """OpenJAUS's decoder, ``raw * scale + bias``, for comparison with its logs."""

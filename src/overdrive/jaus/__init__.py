@@ -1,0 +1,1 @@
+from overdrive.jaus import messages  # noqa
