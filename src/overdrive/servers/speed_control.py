@@ -32,6 +32,7 @@ from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
 AIR_DENSITY_KGPM3 = 1.225          # ISA sea level, as the drag model assumes
 MIN_AUTHORITY_SPEED_MPS = 0.5      # power-limited force is evaluated at no less than this
 REDLINE_TAPER_FRACTION = 0.9       # drive force fades over the last 10 % below the gear's top speed
+REF_SNAP_MPS = 1e-3                # the reference's exponential approach ends within this
 
 
 class LongitudinalGains(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -131,18 +132,22 @@ class LongitudinalController:
         # reference: ramp at the requested rate, ease in exponentially, stay near the vehicle
         last_ref = self.v_ref_mps
         gap = target_mps - last_ref
-        slope = clamp(gap / g.approach_s, -rate_mps2, rate_mps2) if g.approach_s > 0 else (
-            math.copysign(rate_mps2, gap) if gap else 0.0)
+        if g.approach_s > 0.0:
+            slope = clamp(gap / g.approach_s, -rate_mps2, rate_mps2)
+        else:
+            slope = math.copysign(rate_mps2, gap) if gap else 0.0
         ref = last_ref + slope * dt_s
-        if (ref - target_mps) * (last_ref - target_mps) < 0.0:
+        if (ref - target_mps) * (last_ref - target_mps) <= 0.0 or abs(ref - target_mps) < REF_SNAP_MPS:
             ref = target_mps
-        ref = clamp(ref, speed_mps - g.max_ref_lead_mps, speed_mps + g.max_ref_lead_mps)
-        ref = max(ref, 0.0)
-        slope = (ref - last_ref) / dt_s if dt_s > 0 else 0.0
+        # the lead limit moves the reference, never the feed-forward slope: a slope taken from
+        # a reference pinned to the (noisy) measured speed would feed noise / dt forward
+        ref = max(clamp(ref, speed_mps - g.max_ref_lead_mps, speed_mps + g.max_ref_lead_mps), 0.0)
+        if ref == target_mps and target_mps == last_ref:
+            slope = 0.0
         self.v_ref_mps = ref
 
-        stopping = target_mps <= 0.0 and ref <= 0.0
-        if stopping and stopped:
+        stopping = target_mps <= 0.0
+        if stopping and stopped and ref <= 0.0:
             # standstill hold: a fixed brake effort, loops reset for a clean start
             self.braking = True
             self.throttle_pid.reset(0.0)

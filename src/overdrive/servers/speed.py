@@ -1,0 +1,533 @@
+"""The speed server (seed 001): engine, brake and transmission management, speed control.
+
+A lock-step node. Each period it reads the SPSS requests ("set speed") and the vehicle's
+sensors from its inbox, validates every request (an invalid one is a fault and is not
+executed), runs the watchdog, moves the state machine of ``speed_table`` by at most one
+transition, and publishes:
+
+- ``speed/state``: one ``SpeedState`` reply per SPSS received, or one status when none came;
+- ``vehicle/pedals`` and ``vehicle/powertrain`` every period (``source="speed"``);
+- ``events``: a ``Notice`` per fault (``kind="fault"``) and per emergency stop (``kind="estop"``).
+
+Decisions the seed leaves open (documented in ``docs/speed-server.md``):
+
+- Requests are goals: from parked, a request for run walks parked -> reset -> starting ->
+  paused -> runwait -> shifting -> run. Leaving paused always passes the 5 s runwait.
+- Gears are engaged only in ``shifting``; ``shifting`` is always entered on the way to run and
+  lasts one period when the vehicle is already in the gear.
+- An emergency stop (SPSS silent for ``spss_timeout_s``, sensors silent, or a client fault) is
+  latched: brakes full on, throttle zero, requests not acted upon; ``run``/``runwait``/
+  ``shifting`` fall back to ``idle``. It clears when an SPSS arrives, the sensors are live,
+  the vehicle is stopped, and that SPSS is a valid request with fault code 0.
+- After the automatic park (``pause_park_s`` in paused) a repeated request for paused does not
+  restart the engine; the client must request another state first.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import msgspec
+
+from overdrive.control import first_order_lag
+from overdrive.messages import (
+    GpsIns,
+    Imu,
+    Notice,
+    PedalCommand,
+    PowertrainCommand,
+    SetSpeed,
+    SpeedState,
+    Topic,
+    VehicleStatus,
+    WheelSpeed,
+)
+from overdrive.servers.speed_control import (
+    LongitudinalController,
+    LongitudinalGains,
+    gains_for,
+)
+from overdrive.servers.speed_table import (
+    CLIENT_FAULT_MAX,
+    REQUESTABLE,
+    STATE_TABLE,
+    STATES,
+    Conditions,
+    FaultCode,
+    classify_event,
+    fault_message,
+    next_state,
+)
+from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
+
+SOURCE = "speed"
+TIME_EPS_S = 1e-9   # float slack when comparing simulated times built from integer ticks
+
+
+class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """Timings, thresholds and gains of the speed server; defaults are the seed's values."""
+
+    spss_timeout_s: float = 0.2          # seed 001: "Failure to send one for 200ms ... emergency stop"
+    sensor_timeout_s: float = 0.2        # same budget for vehicle status and speed (engineering choice)
+    runwait_s: float = 5.0               # seed 001: "five second DARPA-required safety delay"
+    start_retry_s: float = 30.0          # seed 001: startwait "Try again after 30 seconds."
+    pause_park_s: float = 600.0          # seed 001: "After about ten minutes in paused ... parked"
+    reset_s: float = 0.5                 # controller reset time (estimate; not in the seed)
+    start_timeout_margin_s: float = 2.0  # crank attempt given up after crank_time_s + this
+    shift_timeout_margin_s: float = 3.0  # shift given up after shift_time_s + this
+    standstill_mps: float = 0.1          # |filtered speed| below this is "stopped" (5 sigma of GPS noise)
+    speed_filter_s: float = 0.1          # filter on the speed used for standstill decisions
+    hold_brake_pct: float = 50.0         # seed 000: "once stopped ... 50 % braking effort"
+    gear_cap_fraction: float = 0.9       # target capped at this share of the gear's top speed,
+                                         # below the plant's redline fade (seed 001 gear limits)
+    max_request_speed_mps: float = 70.0  # same bound as the scenario file's speeds
+    max_request_accel_mps2: float = 10.0  # above any preset's full-brake deceleration (9 m/s^2)
+    fault_hold_s: float = 1.0            # a fault stays in the replies at least this long
+    hint_hold_s: float = 1.0             # a hint stays at least this long (no chatter)
+    slip_min_mps: float = 0.5            # wheel vs ground speed disagreement that is slipping ...
+    slip_fraction: float = 0.15          # ... or this share of the ground speed, if larger
+    slip_time_s: float = 0.2             # ... for at least this long
+    upshift_rpm_fraction: float = 0.85   # rpm share of idle..redline that suggests an upshift
+    slowdown_rpm_fraction: float = 0.97  # rpm share that suggests slowing down
+    lugging_throttle_pct: float = 80.0   # high gear, this much throttle, not keeping up: downshift
+    lugging_time_s: float = 1.0
+    gains: LongitudinalGains | None = None  # None: the preset's tuned gains (speed_control.GAINS)
+
+
+def _finite(*values: float) -> bool:
+    return all(math.isfinite(v) for v in values)
+
+
+class SpeedServer:
+    """Seed-001 speed server node (see the module docstring)."""
+
+    name = "speed"
+    period_s = 0.01
+    subscriptions = (Topic.SET_SPEED, Topic.VEHICLE_STATUS, Topic.WHEEL_SPEED, Topic.GPS_INS,
+                     Topic.IMU)
+
+    def __init__(self, params: VehicleParams, *, initial_state: str = "parked",
+                 initial_gear: str | None = None, config: SpeedServerConfig | None = None) -> None:
+        if initial_state not in STATES:
+            raise ValueError(f"initial_state: unknown speed state {initial_state!r}")
+        if initial_gear is not None and initial_gear not in params.gear_names:
+            raise ValueError(f"initial_gear: {params.preset} has no gear {initial_gear!r}")
+        self.params = params
+        self.config = cfg = config or SpeedServerConfig()
+        self.neutral_gear = next(
+            (g.name for g in params.gears if g.direction == 0 and not g.holds), params.park_gear)
+        self.controller = LongitudinalController(params, cfg.gains or gains_for(params),
+                                                 cfg.hold_brake_pct)
+        self.state = initial_state
+        in_gear = STATE_TABLE[initial_state].in_gear
+        self.gear_cmd = initial_gear or (params.drive_gear if in_gear else params.park_gear)
+        self.goal = initial_state if initial_state in REQUESTABLE else "parked"
+        self.goal_gear = self.gear_cmd if in_gear else params.drive_gear
+        self.target_mps = 0.0
+        self.rate_mps2 = 1.0
+        self.auto_parked = False
+        self.state_since_s: float | None = None
+        self.shift_for_run = False
+        self.saw_cranking = False
+        # inputs
+        self.status: VehicleStatus | None = None
+        self.gps: GpsIns | None = None
+        self.wheel_mps: float | None = None
+        self.imu: Imu | None = None
+        self.speed_mps = 0.0           # signed ground speed (GPS/INS, else wheel speed)
+        self.speed_filt_mps = 0.0
+        self.accel_mps2 = 0.0          # longitudinal acceleration, gravity removed
+        self.accel_filt_mps2 = 0.0
+        self.last_now_s: float | None = None
+        self.first_step_s = 0.0
+        self.last_spss_s: float | None = None
+        self.last_sensor_s: float | None = None   # last VehicleStatus
+        self.last_gps_s: float | None = None
+        self.last_wheel_s: float | None = None
+        self.last_imu_s: float | None = None
+        self.speed_live = False
+        self.spss_lost = False
+        self.sensor_lost = False
+        # faults and e-stop
+        self.client_fault = 0
+        self.estop_reason = ""
+        self.fault = 0
+        self.fault_message = ""
+        self.fault_since_s = -math.inf
+        self.last_rejection: tuple[int, str] | None = None
+        self.last_input_rejection = ""
+        # hints
+        self.hint = "none"
+        self.hint_since_s = -math.inf
+        self.slip_since_s: float | None = None
+        self.lug_since_s: float | None = None
+        self.pedals = PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE)
+
+    # ------------------------------------------------------------------ node
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
+        self.last_now_s = now_s
+        if self.state_since_s is None:
+            self.state_since_s = now_s
+        if self.last_sensor_s is None:
+            self.last_sensor_s = now_s   # grace period: the sensors get one timeout to appear
+            self.first_step_s = now_s
+        requests = self._read_inputs(now_s, inbox, out)
+        self._update_measurements(now_s, dt_s)
+
+        client_fault_edge = False
+        reply_faults: list[tuple[int, str]] = []
+        for spss in requests:
+            self.last_spss_s = now_s
+            self.spss_lost = False
+            client_fault_edge |= self._handle_request(now_s, spss, out)
+            reply_faults.append((self.fault, self.fault_message))
+        watchdog_edge = self._watchdog(now_s, out)
+
+        event = classify_event(self.state, self._conditions(now_s, client_fault_edge,
+                                                           watchdog_edge))
+        new_state = next_state(self.state, event)
+        if new_state != self.state:
+            self._enter(now_s, new_state, event, out)
+
+        pedals, powertrain = self._actuators(dt_s)
+        self.pedals = pedals
+        self._update_hint(now_s)
+        out.append((Topic.PEDALS, pedals))
+        out.append((Topic.POWERTRAIN, powertrain))
+        for code, message in reply_faults or [(self.fault, self.fault_message)]:
+            if not code:
+                code, message = self.fault, self.fault_message
+            out.append((Topic.SPEED_STATE, self._speed_state(code, message)))
+        return out
+
+    # ------------------------------------------------------------------ inputs
+
+    def _read_inputs(self, now_s: float, inbox: Sequence[tuple[str, Any]],
+                     out: list) -> list[SetSpeed]:
+        requests: list[SetSpeed] = []
+        for topic, msg in inbox:
+            if topic == Topic.SET_SPEED and isinstance(msg, SetSpeed):
+                requests.append(msg)
+            elif isinstance(msg, VehicleStatus):
+                if self._accept_input(_finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
+                                      "vehicle_status: rpm or pedal not finite", out):
+                    self.status, self.last_sensor_s = msg, now_s
+            elif isinstance(msg, GpsIns):
+                if self._accept_input(_finite(msg.speed_mps, msg.pitch_rad),
+                                      "gps_ins: speed or pitch not finite", out):
+                    self.gps, self.last_gps_s = msg, now_s
+            elif isinstance(msg, WheelSpeed):
+                if self._accept_input(_finite(msg.speed_mps), "wheel_speed: not finite", out):
+                    self.wheel_mps, self.last_wheel_s = msg.speed_mps, now_s
+            elif isinstance(msg, Imu) and self._accept_input(
+                    _finite(msg.accel_x_mps2), "imu: accel_x not finite", out):
+                self.imu, self.last_imu_s = msg, now_s
+        return requests
+
+    def _accept_input(self, ok: bool, reason: str, out: list) -> bool:
+        """Reject a non-finite sensor message with a Notice (once per run of identical ones)."""
+        if ok:
+            if self.last_input_rejection == reason:
+                self.last_input_rejection = ""
+            return True
+        if self.last_input_rejection != reason:
+            self.last_input_rejection = reason
+            out.append((Topic.NOTICE, Notice(kind="rejected", source=SOURCE, code="sensor",
+                                             reason=reason)))
+        return False
+
+    def _fresh(self, last_s: float | None, now_s: float) -> bool:
+        return last_s is not None and now_s - last_s < self.config.sensor_timeout_s - TIME_EPS_S
+
+    def _update_measurements(self, now_s: float, dt_s: float) -> None:
+        """Speed from the GPS/INS (ground truth of motion), else the wheels; acceleration from
+        the IMU with gravity along the pitch removed, else from the speed's derivative."""
+        cfg = self.config
+        last_speed = self.speed_mps
+        if self.gps is not None and self._fresh(self.last_gps_s, now_s):
+            self.speed_mps = self.gps.speed_mps
+        elif self.wheel_mps is not None and self._fresh(self.last_wheel_s, now_s):
+            self.speed_mps = self.wheel_mps
+        self.speed_live = (self._fresh(self.last_gps_s, now_s)
+                           or self._fresh(self.last_wheel_s, now_s))
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        if self.imu is not None and self._fresh(self.last_imu_s, now_s):
+            self.accel_mps2 = self.imu.accel_x_mps2 - G_MPS2 * math.sin(pitch)
+        elif dt_s > 0.0:
+            self.accel_mps2 = first_order_lag((self.speed_mps - last_speed) / dt_s,
+                                              self.accel_mps2, cfg.speed_filter_s, dt_s)
+        self.speed_filt_mps = first_order_lag(self.speed_mps, self.speed_filt_mps,
+                                              cfg.speed_filter_s, dt_s)
+        self.accel_filt_mps2 = first_order_lag(self.accel_mps2, self.accel_filt_mps2,
+                                               cfg.speed_filter_s, dt_s)
+
+    @property
+    def stopped(self) -> bool:
+        return abs(self.speed_filt_mps) < self.config.standstill_mps
+
+    @property
+    def latched(self) -> bool:
+        return bool(self.estop_reason)
+
+    # ------------------------------------------------------------------ requests
+
+    def _handle_request(self, now_s: float, spss: SetSpeed, out: list) -> bool:
+        """Validate and apply one SPSS; return True on a new client fault."""
+        if spss.fault != 0:
+            new = spss.fault != self.client_fault
+            self.client_fault = spss.fault
+            if new:
+                code = spss.fault if 1 <= spss.fault <= CLIENT_FAULT_MAX else FaultCode.OUT_OF_RANGE
+                message = (fault_message(code) if code != FaultCode.OUT_OF_RANGE else fault_message(
+                    code, field="fault", value=spss.fault, low=0, high=CLIENT_FAULT_MAX)
+                    + "; stopping anyway")
+                self._raise_fault(now_s, int(code), message, out)
+                self._estop(f"client fault {spss.fault}", out)
+            return new
+        self.client_fault = 0
+        invalid = self._validate(spss)
+        if invalid is not None:
+            code, message = invalid
+            if self.last_rejection != invalid:
+                self.last_rejection = invalid
+                self._raise_fault(now_s, code, message, out)
+            else:
+                self.fault, self.fault_message, self.fault_since_s = code, message, now_s
+            return False
+        self.last_rejection = None
+        if self.latched:
+            if self.sensor_lost or not self.stopped:
+                return False   # not executed: the e-stop holds until the vehicle has stopped
+            self.estop_reason = ""
+        self._accept(spss)
+        if self.fault and now_s - self.fault_since_s >= self.config.fault_hold_s - TIME_EPS_S:
+            self.fault, self.fault_message = 0, ""
+        return False
+
+    def _validate(self, spss: SetSpeed) -> tuple[int, str] | None:
+        """``(code, message)`` of the first problem with ``spss``, or None when valid."""
+        cfg = self.config
+        p = self.params
+        for field, value in (("speed_mps", spss.speed_mps), ("accel_mps2", spss.accel_mps2)):
+            if not math.isfinite(value):
+                return FaultCode.NOT_FINITE, fault_message(FaultCode.NOT_FINITE, field=field)
+        if not 0.0 <= spss.speed_mps <= cfg.max_request_speed_mps:
+            return FaultCode.OUT_OF_RANGE, fault_message(
+                FaultCode.OUT_OF_RANGE, field="speed_mps", value=spss.speed_mps, low=0.0,
+                high=cfg.max_request_speed_mps)
+        if not 0.0 < spss.accel_mps2 <= cfg.max_request_accel_mps2:
+            return FaultCode.OUT_OF_RANGE, fault_message(
+                FaultCode.OUT_OF_RANGE, field="accel_mps2", value=spss.accel_mps2,
+                low="0 (exclusive)", high=cfg.max_request_accel_mps2)
+        if spss.state not in REQUESTABLE:
+            return FaultCode.BAD_STATE, fault_message(FaultCode.BAD_STATE, state=spss.state)
+        if spss.gear not in p.gear_names:
+            return FaultCode.UNKNOWN_GEAR, fault_message(FaultCode.UNKNOWN_GEAR, preset=p.preset,
+                                                         gear=spss.gear)
+        if spss.state not in ("idle", "run"):
+            return None   # seed 001: "Gear selection only matters for run" (and idle's shifts)
+        if spss.state == "run" and p.gear(spss.gear).direction == 0:
+            return FaultCode.NO_DRIVE_GEAR, fault_message(FaultCode.NO_DRIVE_GEAR, gear=spss.gear)
+        if self.state in ("runwait", "shifting", "run") and spss.gear != self.goal_gear:
+            return FaultCode.GEAR_CHANGE_OUTSIDE_IDLE, fault_message(
+                FaultCode.GEAR_CHANGE_OUTSIDE_IDLE, gear=spss.gear, state=self.state)
+        if self.state == "idle" and spss.gear != self.gear_cmd and not self.stopped:
+            return FaultCode.SHIFT_WHILE_MOVING, fault_message(
+                FaultCode.SHIFT_WHILE_MOVING, gear=spss.gear, speed_mps=self.speed_filt_mps)
+        return None
+
+    def _accept(self, spss: SetSpeed) -> None:
+        if spss.state == "paused" and self.auto_parked:
+            pass   # parked to save fuel: a repeated "paused" does not restart the engine
+        else:
+            self.auto_parked = False
+            self.goal = spss.state
+        if spss.state in ("idle", "run"):
+            self.goal_gear = spss.gear
+        self.target_mps = spss.speed_mps if spss.state == "run" else 0.0
+        self.rate_mps2 = spss.accel_mps2
+
+    # ------------------------------------------------------------------ faults
+
+    def _raise_fault(self, now_s: float, code: int, message: str, out: list) -> None:
+        self.fault, self.fault_message, self.fault_since_s = code, message, now_s
+        out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE, code=str(code),
+                                         reason=message)))
+
+    def _estop(self, reason: str, out: list) -> None:
+        self.estop_reason = reason
+        out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, reason=reason)))
+
+    def _watchdog(self, now_s: float, out: list) -> bool:
+        """SPSS and sensor timeouts; True on the period an e-stop starts."""
+        cfg = self.config
+        edge = False
+        if self.last_spss_s is not None:
+            silent = now_s - self.last_spss_s >= cfg.spss_timeout_s - TIME_EPS_S
+            if silent and not self.spss_lost:
+                self._raise_fault(now_s, FaultCode.SPSS_TIMEOUT, fault_message(
+                    FaultCode.SPSS_TIMEOUT, timeout_s=cfg.spss_timeout_s), out)
+                self._estop(f"no SPSS for {cfg.spss_timeout_s:.3f} s", out)
+                edge = True
+            self.spss_lost = silent
+        assert self.last_sensor_s is not None
+        silent = (now_s - self.last_sensor_s >= cfg.sensor_timeout_s - TIME_EPS_S
+                  or (not self.speed_live and now_s - self.first_step_s
+                      >= cfg.sensor_timeout_s - TIME_EPS_S))
+        if silent and not self.sensor_lost:
+            self._raise_fault(now_s, FaultCode.SENSOR_TIMEOUT, fault_message(
+                FaultCode.SENSOR_TIMEOUT, timeout_s=cfg.sensor_timeout_s), out)
+            self._estop(f"no vehicle status or speed for {cfg.sensor_timeout_s:.3f} s", out)
+            edge = True
+        self.sensor_lost = silent
+        return edge
+
+    # ------------------------------------------------------------------ state machine
+
+    def _conditions(self, now_s: float, client_fault_edge: bool, watchdog_edge: bool) -> Conditions:
+        cfg = self.config
+        p = self.params
+        status = self.status
+        assert self.state_since_s is not None
+        gear = status.gear if status is not None else self.gear_cmd
+        if status is not None and status.engine == "cranking" and self.state == "starting":
+            self.saw_cranking = True
+        return Conditions(
+            goal=self.goal, goal_gear=self.goal_gear,
+            time_in_state_s=now_s - self.state_since_s + TIME_EPS_S,
+            client_fault_edge=client_fault_edge, watchdog_edge=watchdog_edge,
+            latched=self.latched, client_fault_active=self.client_fault != 0,
+            engine=status.engine if status is not None else "",
+            saw_cranking=self.saw_cranking,
+            gear=gear, gear_neutral=gear in p.gear_names and p.gear(gear).direction == 0,
+            shifting=status.shifting if status is not None else False,
+            stopped=self.stopped, shift_for_run=self.shift_for_run,
+            reset_s=cfg.reset_s, start_timeout_s=p.crank_time_s + cfg.start_timeout_margin_s,
+            start_retry_s=cfg.start_retry_s, pause_park_s=cfg.pause_park_s,
+            runwait_s=cfg.runwait_s, shift_timeout_s=p.shift_time_s + cfg.shift_timeout_margin_s,
+        )
+
+    def _enter(self, now_s: float, new_state: str, event: str | None, out: list) -> None:
+        old = self.state
+        self.state = new_state
+        self.state_since_s = now_s
+        self.shift_for_run = new_state == "shifting" and old == "runwait"
+        self.saw_cranking = False
+        if event == "pause_timeout":
+            self.goal, self.auto_parked = "parked", True
+        elif event == "stalled":
+            self._raise_fault(now_s, FaultCode.ENGINE_STALLED,
+                              fault_message(FaultCode.ENGINE_STALLED, state=old), out)
+        elif event == "shift_failed":
+            self._raise_fault(now_s, FaultCode.SHIFT_FAILED, fault_message(
+                FaultCode.SHIFT_FAILED, gear=self.goal_gear,
+                timeout_s=self.params.shift_time_s + self.config.shift_timeout_margin_s), out)
+            if self.status is not None:
+                self.gear_cmd = self.status.gear
+            self.goal, self.goal_gear = "idle", self.gear_cmd
+        if new_state == "run":
+            direction = self._gear().direction
+            self.controller.reset(direction * self.speed_filt_mps,
+                                  direction * self.accel_filt_mps2, self.pedals.brake_pct)
+
+    def _gear(self) -> Gear:
+        return self.params.gear(self.gear_cmd)
+
+    # ------------------------------------------------------------------ outputs
+
+    def _actuators(self, dt_s: float) -> tuple[PedalCommand, PowertrainCommand]:
+        p = self.params
+        row = STATE_TABLE[self.state]
+        state = self.state
+        if state in ("parked", "reset"):
+            self.gear_cmd = p.park_gear
+        elif state in ("starting", "startwait", "paused"):
+            self.gear_cmd = self.neutral_gear
+        elif state == "shifting" and self.stopped:
+            self.gear_cmd = self.goal_gear
+        engine_on = row.engine_on
+        if state == "starting" and self.status is not None:
+            # seed 001: starting "Must be in neutral": crank only out of gear
+            engine_on = p.gear(self.status.gear).direction == 0 if (
+                self.status.gear in p.gear_names) else False
+        powertrain = PowertrainCommand(gear=self.gear_cmd, engine_on=engine_on,
+                                       horn=state == "runwait", park_brake=row.brakes_locked,
+                                       source=SOURCE)
+        if row.brakes_locked:
+            return PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE), powertrain
+        # run
+        gear = self._gear()
+        direction = gear.direction
+        v_g = direction * self.speed_mps
+        a_g = direction * self.accel_mps2
+        status = self.status
+        if self.latched or status is None or not status.computer_speed:
+            brake = 100.0 if self.latched else self.config.hold_brake_pct
+            self.controller.reset(direction * self.speed_filt_mps, a_g, brake)
+            return PedalCommand(throttle_pct=0.0, brake_pct=brake, source=SOURCE), powertrain
+        target = 0.0
+        if self.goal == "run":
+            target = min(self.target_mps, gear.max_speed_mps * self.config.gear_cap_fraction)
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g,
+                                      direction * math.sin(pitch), gear, self.stopped)
+        return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
+                             source=SOURCE), powertrain)
+
+    def _update_hint(self, now_s: float) -> None:
+        """Seed 001 hints; each one is held ``hint_hold_s`` so the client sees no chatter."""
+        cfg = self.config
+        p = self.params
+        status = self.status
+        hint = "none"
+        if self.state == "run" and status is not None:
+            gear = self._gear()
+            ground = self.speed_mps
+            wheel = self.wheel_mps if self.wheel_mps is not None else ground
+            disagree = abs(wheel - ground) > max(cfg.slip_min_mps, cfg.slip_fraction * abs(ground))
+            if status.traction_control or disagree:
+                if self.slip_since_s is None:
+                    self.slip_since_s = now_s
+            else:
+                self.slip_since_s = None
+            rpm_frac = (status.engine_rpm - p.idle_rpm) / max(p.redline_rpm - p.idle_rpm, 1.0)
+            lugging = (gear.name == p.drive_gear and status.throttle_pct >= cfg.lugging_throttle_pct
+                       and self.controller.v_ref_mps - gear.direction * ground > 0.5
+                       and abs(ground) < p.gear(p.low_gear).max_speed_mps * cfg.gear_cap_fraction)
+            if lugging:
+                if self.lug_since_s is None:
+                    self.lug_since_s = now_s
+            else:
+                self.lug_since_s = None
+            cap = gear.max_speed_mps * cfg.gear_cap_fraction
+            if self.slip_since_s is not None and now_s - self.slip_since_s >= cfg.slip_time_s:
+                hint = "slipping"
+            elif rpm_frac >= cfg.slowdown_rpm_fraction:
+                hint = "suggest_slowdown"
+            elif self.lug_since_s is not None and now_s - self.lug_since_s >= cfg.lugging_time_s:
+                hint = "suggest_downshift"
+            elif (gear.direction > 0 and gear.name != p.drive_gear
+                  and (rpm_frac >= cfg.upshift_rpm_fraction
+                       or (self.goal == "run" and self.target_mps > cap))):
+                hint = "suggest_upshift"
+        else:
+            self.slip_since_s = self.lug_since_s = None
+        if hint != self.hint and (hint != "none" or now_s - self.hint_since_s >= cfg.hint_hold_s):
+            self.hint, self.hint_since_s = hint, now_s
+
+    def _speed_state(self, fault: int, fault_message: str) -> SpeedState:
+        status = self.status
+        return SpeedState(
+            speed_mps=self.speed_mps, accel_mps2=self.accel_filt_mps2,
+            gear=status.gear if status is not None else self.gear_cmd,
+            state=self.state, fault=fault, fault_message=fault_message,
+            hint=self.hint, estop=self.latched,  # type: ignore[arg-type]
+        )
+
+
+__all__ = ["SpeedServer", "SpeedServerConfig"]
