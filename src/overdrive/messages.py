@@ -210,11 +210,14 @@ class SafetyDevices(Message, frozen=True):
     """Physical safety devices (seed 000): SafeStop, manual overrides, door, e-stop, errors."""
 
     safestop: Literal["run", "pause", "stop"] = "run"
+    safestop_link: Literal["none", "bypass", "good"] = "good"
     manual_override: bool = False
     emergency_manual_override: bool = False
     door_open: bool = False
     estop_button: bool = False
     internal_error: bool = False
+    steering_needs_init: bool = False
+    steering_awaiting_user: bool = False
     partial_mode: Literal["full", "manual-steering", "manual-speed"] = "full"
 
 

@@ -19,6 +19,7 @@ from typing import Any
 from overdrive.bus.local import LocalBus
 from overdrive.expect import check
 from overdrive.messages import Topic
+from overdrive.monitor import Monitor
 from overdrive.player import ChannelFaults, ScenarioPlayer, world_from_spec
 from overdrive.recorder import Recorder
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
@@ -119,15 +120,18 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
                 open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
         recorder = Recorder(trace_file, keep_rows=keep_trace)
         bus.tap(recorder.observe)
+        monitor = Monitor(scenario.vehicle, scenario.spec.world.friction, period_s)
+        bus.tap(monitor.observe)
         runtime = LockstepRuntime(nodes, bus, period_s)
         duration_s = scenario.spec.duration_s
         wall_start = time.monotonic()
         end_tick = round(duration_s / period_s)
         report_every = max(1, end_tick // 200)
         while runtime.tick <= end_tick:
-            faults.now_s = runtime.tick * period_s
+            faults.now_s = recorder.now_s = monitor.now_s = runtime.tick * period_s
             now_s = runtime.step()
             recorder.tick(now_s)
+            monitor.tick(now_s)
             if realtime:
                 lag = now_s - (time.monotonic() - wall_start)
                 if lag > 0:
@@ -135,7 +139,8 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
             if progress is not None and runtime.tick % report_every == 0:
                 progress(now_s, duration_s)
         wall_time_s = time.monotonic() - wall_start
-    summary = make_summary(scenario, recorder, runtime.now_s - period_s, wall_time_s, nodes)
+    summary = make_summary(scenario, recorder, runtime.now_s - period_s, wall_time_s, nodes,
+                           monitor.finish())
     exit_code = 1 if summary["violations"] else 0
     if out_path is not None:
         (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -147,7 +152,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
 
 
 def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,
-                 nodes: list[Node]) -> dict[str, Any]:
+                 nodes: list[Node], invariant_violations: list[str]) -> dict[str, Any]:
     p = scenario.vehicle
     truth = rec.latest.get(Topic.TRUTH)
     status = rec.latest.get(Topic.VEHICLE_STATUS)
@@ -182,9 +187,7 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
         "events": rec.events,
         "violations": [],
     }
-    violations: list[str] = []
-    if rec.contact_at_s is not None:
-        violations.append(f"contact: the vehicle touched an obstacle at t={rec.contact_at_s:.2f} s")
+    violations = [f"invariant {v}" for v in invariant_violations]
     for expect in scenario.spec.expect:
         failure = check(expect, summary, rec.states_seen, rec.modes_seen)
         if failure:
