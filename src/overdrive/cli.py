@@ -69,6 +69,18 @@ def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, 
     raise SystemExit(result.exit_code)
 
 
+@main.command()
+def bench() -> None:
+    """Run the benchmark suite (bench/ in a source checkout) and print one table."""
+    import runpy
+
+    script = Path.cwd() / "bench" / "run.py"
+    if not script.is_file():
+        fail_usage("bench/run.py not found: run `overdrive bench` from an overdrive source checkout")
+    sys.path.insert(0, str(script.parent))
+    runpy.run_path(str(script), run_name="__main__")
+
+
 def print_summary(summary: dict, out: Path) -> None:
     from rich.console import Console
     from rich.table import Table
