@@ -63,6 +63,9 @@ from overdrive.servers.speed_table import (
 from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
 
 SOURCE = "speed"
+INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",
+                "runwait": "idle", "shifting": "idle"}
+"""Goal assumed when the server starts in a state that cannot be requested."""
 TIME_EPS_S = 1e-9   # float slack when comparing simulated times built from integer ticks
 
 
@@ -123,7 +126,7 @@ class SpeedServer:
         self.state = initial_state
         in_gear = STATE_TABLE[initial_state].in_gear
         self.gear_cmd = initial_gear or (params.drive_gear if in_gear else params.park_gear)
-        self.goal = initial_state if initial_state in REQUESTABLE else "parked"
+        self.goal = INITIAL_GOAL.get(initial_state, initial_state)
         self.goal_gear = self.gear_cmd if in_gear else params.drive_gear
         self.target_mps = 0.0
         self.rate_mps2 = 1.0

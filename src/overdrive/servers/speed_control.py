@@ -32,6 +32,7 @@ from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
 AIR_DENSITY_KGPM3 = 1.225          # ISA sea level, as the drag model assumes
 MIN_AUTHORITY_SPEED_MPS = 0.5      # power-limited force is evaluated at no less than this
 REDLINE_TAPER_FRACTION = 0.9       # drive force fades over the last 10 % below the gear's top speed
+ROLLBACK_MPS = 0.1                 # rolling back faster than this while holding: full brake
 REF_SNAP_MPS = 1e-3                # the reference's exponential approach ends within this
 
 
@@ -40,14 +41,14 @@ class LongitudinalGains(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
 
     speed_kp_1ps: float = 1.5            # a_cmd per m/s of speed error
     approach_s: float = 0.3              # time constant of the reference's final approach
-    max_ref_lead_mps: float = 1.0        # v_ref stays within this of the measured speed
+    max_ref_lead_mps: float = 0.3        # v_ref stays within this of the measured speed
     max_accel_cmd_mps2: float = 4.0      # outer-loop command limits
     max_decel_cmd_mps2: float = 8.0
     coast_band_mps2: float = 0.08        # hysteresis between throttle and brake
     throttle_filter_s: float = 0.2       # seed 003: "about 200ms" of filtering on the throttle loop
     brake_filter_s: float = 0.03         # tight loop from the inertial sensor
     throttle: PidGains = PidGains(kp=0.3, ki=0.8, output_min=0.0, output_max=100.0,
-                                  output_rate_per_s=150.0, tracking_time_s=0.3)
+                                  output_rate_per_s=300.0, tracking_time_s=0.3)
     brake: PidGains = PidGains(kp=0.4, ki=2.0, output_min=0.0, output_max=100.0,
                                output_rate_per_s=400.0, tracking_time_s=0.1)
 
@@ -147,18 +148,21 @@ class LongitudinalController:
         self.v_ref_mps = ref
 
         stopping = target_mps <= 0.0
-        if stopping and stopped and ref <= 0.0:
-            # standstill hold: a fixed brake effort, loops reset for a clean start
+        if stopping and (stopped or speed_mps <= 0.0):
+            # standstill hold: a fixed brake effort (all of it if rolling back against the
+            # gear), loops reset for a clean start
+            hold = self.hold_brake_pct if speed_mps > -ROLLBACK_MPS else 100.0
             self.braking = True
             self.throttle_pid.reset(0.0)
-            self.brake_pid.reset(self.hold_brake_pct)
-            return PedalOutput(0.0, self.hold_brake_pct, ref, 0.0)
+            self.brake_pid.reset(hold)
+            self.v_ref_mps = 0.0
+            return PedalOutput(0.0, hold, 0.0, 0.0)
 
         a_cmd = clamp(slope + g.speed_kp_1ps * (ref - speed_mps),
                       -g.max_decel_cmd_mps2, g.max_accel_cmd_mps2)
         need = a_cmd + resistance_mps2(p, max(speed_mps, 0.0), sin_pitch)
         if stopping:
-            need = min(need, -g.coast_band_mps2)   # never throttle while bringing it to rest
+            need = min(need, -2.0 * g.coast_band_mps2)   # never throttle while bringing it to rest
         if self.braking and need > g.coast_band_mps2:
             self.braking = False
             self.brake_pid.reset(0.0)
