@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 from overdrive.bus.local import LocalBus
-from overdrive.player import ChannelFaults
+from overdrive.player import channel_faults
 from overdrive.runtime import LockstepRuntime
 from overdrive.scenario import load_scenario
 from overdrive.sim import build_nodes
@@ -50,8 +50,8 @@ def step_costs(scenario_path: Path) -> dict[str, float]:
         return node
 
     bus = LocalBus()
-    faults = ChannelFaults(scenario)
-    bus.filter = faults.admit
+    faults = channel_faults(scenario)
+    bus.channel = faults
     runtime = LockstepRuntime([timed(n) for n in nodes], bus)
     end_tick = round(scenario.spec.duration_s / runtime.period_s)
     ticks: list[float] = []

@@ -56,12 +56,21 @@ def test_period_must_be_a_multiple_of_the_base_period() -> None:
         LockstepRuntime([], period_s=0.0)
 
 
-def test_bus_filter_drops_and_counts_but_taps_see_everything() -> None:
+def test_channel_model_routes_and_taps_see_everything() -> None:
+    class EvenOnlyDoubleThree:
+        def route(self, topic, msg):
+            return (msg, msg) if msg == 3 else ((msg,) if msg % 2 == 0 else ())
+
+        def due(self):
+            return [("t", 99)]
+
     bus = LocalBus()
     inbox = bus.subscribe(["t"])
     seen = []
     bus.tap(lambda topic, msg: seen.append(msg))
-    bus.filter = lambda topic, msg: msg % 2 == 0
+    bus.channel = EvenOnlyDoubleThree()
     for i in range(4):
         bus.publish("t", i)
-    assert [m for _, m in inbox] == [0, 2] and seen == [0, 1, 2, 3] and bus.dropped == 2
+    assert [m for _, m in inbox] == [0, 2, 3, 3] and seen == [0, 1, 2, 3]
+    bus.pump()
+    assert inbox[-1] == ("t", 99)

@@ -13,6 +13,7 @@ from typing import Any
 
 import msgspec
 
+from overdrive.faults import ChannelFaults
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -27,26 +28,11 @@ from overdrive.messages import (
 )
 from overdrive.scenario import EventSpec, Scenario
 from overdrive.vehicle.plant import ActuatorFaults, World
-from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
+from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC, EngineStall, SensorFault
 
 SPSS_PERIOD_S = 0.1        # seed 001: "An SPSS message should be sent to the speed server every 100ms"
 REFRESH_PERIOD_S = 0.1     # max_speed limits are refreshed at the same rate, so they never expire
 EPS_S = 1e-9
-
-CHANNEL_TOPICS: dict[str, tuple[str, ...]] = {
-    "set_speed": (Topic.SET_SPEED,),
-    "steering": (Topic.STEER,),
-    "pedals": (Topic.PEDALS,),
-    "radar": (Topic.RADAR,),
-    "gps": (Topic.GPS_INS,),
-    "imu": (Topic.IMU,),
-    "wheel_speed": (Topic.WHEEL_SPEED,),
-    "speed_state": (Topic.SPEED_STATE,),
-    "move": (Topic.MOVE_COMMAND,),
-    "advance": (Topic.ADVANCE,),
-    "max_speed": (Topic.MAX_SPEED,),
-    "jaus": (),                       # the JAUS link: applied by the XGV transport
-}
 
 
 def world_from_spec(spec: Any) -> World:
@@ -62,24 +48,15 @@ def world_from_spec(spec: Any) -> World:
                  roughness_mps2=spec.roughness_mps2)
 
 
-class ChannelFaults:
-    """Bus filter for ``drop`` events: a channel carries nothing during its windows."""
-
-    def __init__(self, scenario: Scenario) -> None:
-        self.now_s = 0.0
-        self.windows: dict[str, list[tuple[float, float]]] = {}
-        for event in scenario.events:
-            if event.drop is not None:
-                for topic in CHANNEL_TOPICS[event.drop.channel]:
-                    self.windows.setdefault(topic, []).append(
-                        (event.at_s, event.at_s + event.drop.for_s))
-
-    def admit(self, topic: str, _msg: Any) -> bool:
-        windows = self.windows.get(topic)
-        if not windows:
-            return True
-        now = self.now_s
-        return not any(start - EPS_S <= now < end - EPS_S for start, end in windows)
+def channel_faults(scenario: Scenario) -> ChannelFaults:
+    """The bus channel model for the scenario's drop/delay/duplicate/reorder events."""
+    faults = ChannelFaults()
+    for event in scenario.events:
+        if event.kind in ("drop", "duplicate", "reorder"):
+            faults.add(event.body.channel, event.kind, event.at_s, event.body.for_s)
+        elif event.kind == "delay":
+            faults.add(event.body.channel, "delay", event.at_s, event.body.for_s, event.body.delay_s)
+    return faults
 
 
 class ScenarioPlayer:
@@ -169,14 +146,22 @@ class ScenarioPlayer:
             out.append((Topic.SAFETY, self.devices))
         elif kind == "actuator":
             changes: dict[str, float] = {}
-            if body.throttle is not None:
-                changes["throttle_effectiveness"] = body.throttle.effectiveness
-            if body.brake is not None:
-                changes["brake_effectiveness"] = body.brake.effectiveness
+            for pedal in ("throttle", "brake"):
+                spec = getattr(body, pedal)
+                if spec is not None:
+                    changes[f"{pedal}_effectiveness"] = spec.effectiveness
+                    changes[f"{pedal}_lag_scale"] = spec.lag_scale
+                    changes[f"{pedal}_stuck"] = spec.stuck
             if body.steering is not None:
                 changes["steering_rate_scale"] = body.steering.rate_scale
+                changes["steering_stuck"] = body.steering.stuck
             self.faults = msgspec.structs.replace(self.faults, **changes)
             out.append((FAULTS_TOPIC, self.faults))
+        elif kind == "sensor":
+            out.append((FAULTS_TOPIC, SensorFault(name=body.name, fault=body.fault, start_s=now_s,
+                                                  end_s=now_s + body.for_s, sigma=body.sigma)))
+        elif kind == "engine_stall":
+            out.append((FAULTS_TOPIC, EngineStall()))
         elif kind == "world":
             changes_w: dict[str, Any] = {}
             if body.friction is not None:
@@ -185,4 +170,4 @@ class ScenarioPlayer:
                 changes_w["obstacles"] = tuple((o.x_m, o.y_m) for o in body.obstacles)
             self.world = msgspec.structs.replace(self.world, **changes_w)
             out.append((WORLD_TOPIC, self.world))
-        # "drop" is applied by ChannelFaults on the bus
+        # drop, delay, duplicate and reorder are applied by ChannelFaults on the bus

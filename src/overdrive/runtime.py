@@ -58,6 +58,7 @@ class LockstepRuntime:
     def step(self) -> float:
         """Run one tick; return its time."""
         now_s = self.tick * self.period_s
+        self.bus.pump()
         publish = self.bus.publish
         for node, every, inbox in self._slots:
             if self.tick % every:

@@ -100,21 +100,42 @@ Channel = Literal["set_speed", "steering", "pedals", "radar", "gps", "imu", "whe
 
 
 class DropSpec(Spec, frozen=True):
+    """Also the body of ``duplicate`` and ``reorder``: the fault holds for ``for_s``."""
+
     channel: Channel
     for_s: Duration
 
 
-class EffectivenessSpec(Spec, frozen=True):
-    effectiveness: Scale = 1.0
+class DelaySpec(Spec, frozen=True):
+    channel: Channel
+    for_s: Duration
+    delay_s: Annotated[float, msgspec.Meta(gt=0.0, le=60.0)]
+
+
+class SensorFaultSpec(Spec, frozen=True):
+    name: Literal["gps", "imu", "wheel_speed", "radar"]
+    fault: Literal["freeze", "noise", "dropout"]
+    for_s: Duration
+    sigma: Annotated[float, msgspec.Meta(ge=0.0, le=100.0)] = 1.0   # noise, in the sensor's units
+
+
+LagScale = Annotated[float, msgspec.Meta(ge=0.1, le=50.0)]
+
+
+class PedalFaultSpec(Spec, frozen=True):
+    effectiveness: Scale = 1.0        # weak: force per unit of effort
+    lag_scale: LagScale = 1.0         # slow: actuator time constant multiplied
+    stuck: bool = False               # stuck: the actuator holds its position
 
 
 class SteeringFaultSpec(Spec, frozen=True):
-    rate_scale: Scale = 1.0
+    rate_scale: Scale = 1.0           # slow / weak: steering rate multiplied
+    stuck: bool = False
 
 
 class ActuatorFaultSpec(Spec, frozen=True):
-    throttle: EffectivenessSpec | None = None
-    brake: EffectivenessSpec | None = None
+    throttle: PedalFaultSpec | None = None
+    brake: PedalFaultSpec | None = None
     steering: SteeringFaultSpec | None = None
 
 
@@ -145,7 +166,12 @@ class EventSpec(Spec, frozen=True):
     door: Literal["open", "closed"] | None = None
     partial_mode: Literal["full", "manual-steering", "manual-speed"] | None = None
     drop: DropSpec | None = None
+    delay: DelaySpec | None = None
+    duplicate: DropSpec | None = None
+    reorder: DropSpec | None = None
+    sensor: SensorFaultSpec | None = None
     actuator: ActuatorFaultSpec | None = None
+    engine_stall: Empty | None = None
     world: WorldChangeSpec | None = None
 
     @property

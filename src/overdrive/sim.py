@@ -20,7 +20,7 @@ from overdrive.bus.local import LocalBus
 from overdrive.expect import check
 from overdrive.messages import Topic
 from overdrive.monitor import Monitor
-from overdrive.player import ChannelFaults, ScenarioPlayer, world_from_spec
+from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.recorder import Recorder
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
 from overdrive.scenario import (
@@ -109,8 +109,8 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given."""
     nodes = build_nodes(scenario)
     bus = LocalBus()
-    faults = ChannelFaults(scenario)
-    bus.filter = faults.admit
+    faults = channel_faults(scenario)
+    bus.channel = faults
     out_path = Path(out_dir) if out_dir is not None else None
     with contextlib.ExitStack() as stack:
         trace_file = None
@@ -140,7 +140,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
                 progress(now_s, duration_s)
         wall_time_s = time.monotonic() - wall_start
     summary = make_summary(scenario, recorder, runtime.now_s - period_s, wall_time_s, nodes,
-                           monitor.finish())
+                           monitor.finish(), faults.counts)
     exit_code = 1 if summary["violations"] else 0
     if out_path is not None:
         (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -152,8 +152,10 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
 
 
 def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,
-                 nodes: list[Node], invariant_violations: list[str]) -> dict[str, Any]:
+                 nodes: list[Node], invariant_violations: list[str],
+                 faults_counts: dict[str, int] | None = None) -> dict[str, Any]:
     p = scenario.vehicle
+    faults_counts = faults_counts or {}
     truth = rec.latest.get(Topic.TRUTH)
     status = rec.latest.get(Topic.VEHICLE_STATUS)
     speed_state = rec.latest.get(Topic.SPEED_STATE)
@@ -184,6 +186,7 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
             "max_lateral_accel_mps2": round(rec.max_lat_accel_mps2, 4),
         },
         "gate_interventions": dict(sorted(vehicle_node.gate_interventions.items())),
+        "channel_faults": {k: v for k, v in faults_counts.items() if v},
         "events": rec.events,
         "violations": [],
     }

@@ -1,31 +1,38 @@
 """In-process publish/subscribe bus for the lock-step runtime.
 
 Delivery is synchronous and ordered: a message published during a tick is in every
-subscriber's inbox at once, so a node stepped later in the same tick sees it. Channel faults
-(scenario ``drop`` events, and later delay/duplicate/reorder) are applied here, between
-publisher and subscribers, so no node knows about them.
+subscriber's inbox at once, so a node stepped later in the same tick sees it. A channel model
+(scenario fault injection: drop, delay, duplicate, reorder) may sit between publisher and
+subscribers, so no node knows about faults.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
 
 Envelope = tuple[str, Any]
 Inbox = list[Envelope]
 Tap = Callable[[str, Any], None]
-ChannelFilter = Callable[[str, Any], bool]
+
+
+class ChannelModel(Protocol):
+    def route(self, topic: str, msg: Any) -> Sequence[Any]:
+        """Messages to deliver now for this publication: ``()`` drops, ``(m, m)`` duplicates."""
+        ...
+
+    def due(self) -> Sequence[Envelope]:
+        """Held messages (delayed, reordered) to deliver now; called once per tick."""
+        ...
 
 
 class LocalBus:
     def __init__(self) -> None:
         self._subscribers: dict[str, list[Inbox]] = {}
         self._taps: list[Tap] = []
-        self.filter: ChannelFilter | None = None
-        """Called as ``filter(topic, msg)`` before delivery; False drops the message."""
-        self.dropped = 0
+        self.channel: ChannelModel | None = None
 
-    def subscribe(self, topics: tuple[str, ...] | list[str]) -> Inbox:
+    def subscribe(self, topics: Sequence[str]) -> Inbox:
         """Return a new inbox that receives every message published on ``topics``."""
         inbox: Inbox = []
         for topic in topics:
@@ -36,12 +43,22 @@ class LocalBus:
         """Observe every published message (recording); taps see messages before channel faults."""
         self._taps.append(observer)
 
-    def publish(self, topic: str, msg: Any) -> None:
-        for tap in self._taps:
-            tap(topic, msg)
-        if self.filter is not None and not self.filter(topic, msg):
-            self.dropped += 1
-            return
+    def _deliver(self, topic: str, msg: Any) -> None:
         envelope = (topic, msg)
         for inbox in self._subscribers.get(topic, ()):
             inbox.append(envelope)
+
+    def publish(self, topic: str, msg: Any) -> None:
+        for tap in self._taps:
+            tap(topic, msg)
+        if self.channel is None:
+            self._deliver(topic, msg)
+            return
+        for routed in self.channel.route(topic, msg):
+            self._deliver(topic, routed)
+
+    def pump(self) -> None:
+        """Deliver held messages that are due; the runtime calls it at the start of each tick."""
+        if self.channel is not None:
+            for topic, msg in self.channel.due():
+                self._deliver(topic, msg)

@@ -57,11 +57,16 @@ class World(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
 
 
 class ActuatorFaults(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
-    """Degradations injected by scenarios: 1.0 is healthy."""
+    """Degradations injected by scenarios (weak, slow, stuck); the defaults are healthy."""
 
     throttle_effectiveness: float = 1.0
+    throttle_lag_scale: float = 1.0
+    throttle_stuck: bool = False
     brake_effectiveness: float = 1.0
+    brake_lag_scale: float = 1.0
+    brake_stuck: bool = False
     steering_rate_scale: float = 1.0
+    steering_stuck: bool = False
 
 
 class Plant:
@@ -156,6 +161,11 @@ class Plant:
                 self.shift_target = wanted
                 self.shift_remaining_s = p.shift_time_s
 
+    def stall(self) -> None:
+        """The engine dies; a restart needs the request to go off and on again."""
+        if self.engine != "off":
+            self.engine = "off"
+
     # ------------------------------------------------------------------ step
 
     def step(self, dt_s: float, throttle_pct: float, brake_pct: float, steer_pct: float,
@@ -167,11 +177,14 @@ class Plant:
         self.park_brake = park_brake
 
         # actuators
-        tau_t, tau_b = p.throttle_lag_s, p.brake_lag_s
-        self.throttle += (throttle_pct * 0.01 - self.throttle) * (1.0 - math.exp(-dt_s / tau_t))
-        self.brake += (brake_pct * 0.01 - self.brake) * (1.0 - math.exp(-dt_s / tau_b))
+        if not faults.throttle_stuck:
+            tau_t = p.throttle_lag_s * faults.throttle_lag_scale
+            self.throttle += (throttle_pct * 0.01 - self.throttle) * (1.0 - math.exp(-dt_s / tau_t))
+        if not faults.brake_stuck:
+            tau_b = p.brake_lag_s * faults.brake_lag_scale
+            self.brake += (brake_pct * 0.01 - self.brake) * (1.0 - math.exp(-dt_s / tau_b))
         target_rad = steer_pct * 0.01 * p.max_steer_rad
-        max_step = p.steer_rate_rps * faults.steering_rate_scale * dt_s
+        max_step = 0.0 if faults.steering_stuck else p.steer_rate_rps * faults.steering_rate_scale * dt_s
         last = self._steer_rate_limited_rad
         limited = min(max(target_rad, last - max_step), last + max_step)
         self._steer_rate_limited_rad = limited

@@ -12,7 +12,9 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal
+
+import msgspec
 
 from overdrive.messages import (
     GpsIns,
@@ -37,7 +39,28 @@ PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration
 PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort
 DRIVER_BRAKE_PCT = 30.0      # simulated safety driver under manual override: firm, controlled stop
 WORLD_TOPIC = "sim/world"    # scenario -> simulator: replace the World (obstacles moved, friction...)
-FAULTS_TOPIC = "sim/faults"  # scenario -> simulator: ActuatorFaults
+FAULTS_TOPIC = "sim/faults"  # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
+
+SENSOR_TOPICS = {"gps": Topic.GPS_INS, "imu": Topic.IMU, "wheel_speed": Topic.WHEEL_SPEED,
+                 "radar": Topic.RADAR}
+NOISY_FIELDS = {Topic.GPS_INS: ("x_m", "y_m", "speed_mps"),
+                Topic.IMU: ("accel_x_mps2", "accel_y_mps2"),
+                Topic.WHEEL_SPEED: ("speed_mps",),
+                Topic.RADAR: ("range_m",)}
+
+
+class SensorFault(msgspec.Struct, frozen=True):
+    """A sensor freezes (repeats its last reading), gets noisy, or drops out, for a window."""
+
+    name: Literal["gps", "imu", "wheel_speed", "radar"]
+    fault: Literal["freeze", "noise", "dropout"]
+    start_s: float
+    end_s: float
+    sigma: float = 1.0
+
+
+class EngineStall(msgspec.Struct, frozen=True):
+    """The engine dies now."""
 
 
 class VehicleSim:
@@ -63,6 +86,8 @@ class VehicleSim:
         self.engine_on = ready
         self.park_brake = not ready
         self.last_now_s: float | None = None
+        self.sensor_faults: dict[str, SensorFault] = {}
+        self.last_readings: dict[str, Any] = {}
         self.rejected_sources = 0
         self.gate_interventions: dict[str, int] = {}
         self.mode = safety_mode(self.devices)
@@ -93,7 +118,12 @@ class VehicleSim:
             elif topic == WORLD_TOPIC:
                 self.plant.world = msg
             elif topic == FAULTS_TOPIC:
-                self.plant.faults = msg
+                if isinstance(msg, SensorFault):
+                    self.sensor_faults[SENSOR_TOPICS[msg.name]] = msg
+                elif isinstance(msg, EngineStall):
+                    self.plant.stall()
+                else:
+                    self.plant.faults = msg
 
     def _reject(self, msg: PedalCommand | SteerCommand | PowertrainCommand, out: list) -> None:
         self.rejected_sources += 1
@@ -138,8 +168,28 @@ class VehicleSim:
 
         if dt_s > 0.0:
             plant.step(dt_s, throttle, brake, steer, gear, engine_on, self.park_brake)
-        out.extend(self._sensors(computer_steers, computer_speed))
+        readings = self._sensors(computer_steers, computer_speed)
+        if self.sensor_faults:
+            readings = self._apply_sensor_faults(now_s, readings)
+        out.extend(readings)
         return out
+
+    def _apply_sensor_faults(self, now_s: float, readings: list[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        result = []
+        for topic, msg in readings:
+            fault = self.sensor_faults.get(topic)
+            if fault is None or not fault.start_s - 1e-9 <= now_s < fault.end_s - 1e-9:
+                self.last_readings[topic] = msg
+                result.append((topic, msg))
+            elif fault.fault == "freeze":
+                if topic in self.last_readings:
+                    result.append((topic, self.last_readings[topic]))
+            elif fault.fault == "noise":
+                gauss = self.noise.gauss
+                noisy = {f: getattr(msg, f) + gauss(0.0, fault.sigma) for f in NOISY_FIELDS[topic]}
+                result.append((topic, msgspec.structs.replace(msg, **noisy)))
+            # dropout: nothing published
+        return result
 
     def _count(self, reason: str) -> None:
         self.gate_interventions[reason] = self.gate_interventions.get(reason, 0) + 1

@@ -1,0 +1,91 @@
+"""Channel fault injection for scenarios: drop, delay, duplicate and reorder on a channel.
+
+A ``ChannelFaults`` is the bus's channel model. Each scenario fault opens a window on a
+channel (a group of topics); a message published inside the window is dropped, held for
+``delay_s``, delivered twice, or swapped with the next message on the same topic. The clock is
+the runner's: it sets ``now_s`` before every tick.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from overdrive.messages import Topic
+
+EPS_S = 1e-9
+
+CHANNEL_TOPICS: dict[str, tuple[str, ...]] = {
+    "set_speed": (Topic.SET_SPEED,),
+    "steering": (Topic.STEER,),
+    "pedals": (Topic.PEDALS,),
+    "radar": (Topic.RADAR,),
+    "gps": (Topic.GPS_INS,),
+    "imu": (Topic.IMU,),
+    "wheel_speed": (Topic.WHEEL_SPEED,),
+    "speed_state": (Topic.SPEED_STATE,),
+    "move": (Topic.MOVE_COMMAND,),
+    "advance": (Topic.ADVANCE,),
+    "max_speed": (Topic.MAX_SPEED,),
+    "jaus": (),                       # the JAUS link: applied by the XGV transport
+}
+"""Scenario channel names -> bus topics."""
+
+FAULT_KINDS = ("drop", "delay", "duplicate", "reorder")
+
+
+class Window:
+    __slots__ = ("delay_s", "end_s", "kind", "start_s")
+
+    def __init__(self, kind: str, start_s: float, end_s: float, delay_s: float = 0.0) -> None:
+        self.kind, self.start_s, self.end_s, self.delay_s = kind, start_s, end_s, delay_s
+
+    def open_at(self, now_s: float) -> bool:
+        return self.start_s - EPS_S <= now_s < self.end_s - EPS_S
+
+
+class ChannelFaults:
+    def __init__(self, windows: dict[str, list[Window]] | None = None) -> None:
+        self.now_s = 0.0
+        self.windows: dict[str, list[Window]] = windows or {}
+        self.held: list[tuple[float, int, str, Any]] = []   # (release time, order, topic, msg)
+        self.reorder_slot: dict[str, Any] = {}
+        self.counts = dict.fromkeys(FAULT_KINDS, 0)
+        self._order = 0
+
+    def add(self, channel: str, kind: str, start_s: float, for_s: float, delay_s: float = 0.0) -> None:
+        for topic in CHANNEL_TOPICS[channel]:
+            self.windows.setdefault(topic, []).append(Window(kind, start_s, start_s + for_s, delay_s))
+
+    def route(self, topic: str, msg: Any) -> Sequence[Any]:
+        windows = self.windows.get(topic)
+        if windows:
+            for window in windows:
+                if window.open_at(self.now_s):
+                    return self._apply(window, topic, msg)
+        held = self.reorder_slot.pop(topic, None)
+        return (msg,) if held is None else (msg, held)
+
+    def _apply(self, window: Window, topic: str, msg: Any) -> Sequence[Any]:
+        self.counts[window.kind] += 1
+        if window.kind == "drop":
+            return ()
+        if window.kind == "duplicate":
+            return (msg, msg)
+        if window.kind == "delay":
+            self._order += 1
+            self.held.append((self.now_s + window.delay_s, self._order, topic, msg))
+            return ()
+        held = self.reorder_slot.pop(topic, None)      # reorder: swap with the next message
+        if held is None:
+            self.reorder_slot[topic] = msg
+            return ()
+        return (msg, held)
+
+    def due(self) -> list[tuple[str, Any]]:
+        if not self.held:
+            return []
+        ready = sorted(h for h in self.held if h[0] <= self.now_s + EPS_S)
+        if ready:
+            self.held = [h for h in self.held if h[0] > self.now_s + EPS_S]
+        return [(topic, msg) for _, _, topic, msg in ready]
