@@ -69,6 +69,38 @@ def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, 
     raise SystemExit(result.exit_code)
 
 
+@main.command("move-server")
+@click.option("-s", "--simulate", is_flag=True,
+              help="Simulation mode (seed 004): a seeded fake planner drives the simulated vehicle.")
+@click.option("--vehicle", type=click.Choice(["escape-hybrid", "ranger-6x6"]), default="escape-hybrid",
+              show_default=True)
+@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=1, show_default=True)
+@click.option("--duration-s", type=click.FloatRange(1.0, 86_400.0), default=120.0, show_default=True)
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--quiet", is_flag=True)
+def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_dir: Path | None,
+                quiet: bool) -> None:
+    """Run the move server. With -s: offline, against the simulated vehicle and a fake planner."""
+    if not simulate:
+        fail_usage("move-server runs offline with -s; on a vehicle run `overdrive node move`")
+    from overdrive.move_sim import simulation_nodes
+    from overdrive.scenario import parse_scenario
+    from overdrive.sim import default_out_dir, run_scenario
+    from overdrive.vehicle.plant import World
+
+    scenario = parse_scenario({"name": f"move-server-sim-{vehicle}", "vehicle": vehicle,
+                               "seed": seed, "duration_s": duration_s,
+                               "description": "overdrive move-server -s"}, "<move-server -s>")
+    out = out_dir or default_out_dir(scenario)
+    nodes = simulation_nodes(scenario.vehicle, seed, world=World())
+    result = run_scenario(scenario, out, keep_trace=False, nodes=nodes)
+    if quiet:
+        click.echo(str(out))
+    else:
+        print_summary(result.summary, out)
+    raise SystemExit(result.exit_code)
+
+
 @main.command()
 def bench() -> None:
     """Run the benchmark suite (bench/ in a source checkout) and print one table."""

@@ -86,7 +86,10 @@ def build_nodes(scenario: Scenario) -> list[Node]:
                          ScenarioPlayer(scenario)]
     if kinds & MOVE_KINDS:
         hint = next(k for k in ("move", "reverse", "stop") if k in kinds)
-        nodes.append(_server("move", scenario, hint)(params))
+        move_cls = _server("move", scenario, hint)
+        from overdrive.servers.move import MoveServerConfig
+
+        nodes.append(move_cls(params, config=MoveServerConfig(friction=spec.world.friction)))
     if kinds & (DRIVING_KINDS | MOVE_KINDS):
         hint = next(k for k in ("move", "reverse", "stop", "advance", "max_speed", "steer") if k in kinds)
         nodes.append(_server("driving", scenario, hint)(params, friction=spec.world.friction))
@@ -105,9 +108,13 @@ def default_out_dir(scenario: Scenario) -> Path:
 def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_trace: bool = True,
                  realtime: bool = False, plot: bool = True,
                  progress: Callable[[float, float], None] | None = None,
-                 period_s: float = DEFAULT_PERIOD_S) -> RunResult:
-    """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given."""
-    nodes = build_nodes(scenario)
+                 period_s: float = DEFAULT_PERIOD_S, nodes: list[Node] | None = None) -> RunResult:
+    """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given.
+
+    ``nodes`` replaces the scenario's own composition (e.g. the move server's simulation mode,
+    where a fake planner stands in for the scenario player).
+    """
+    nodes = nodes if nodes is not None else build_nodes(scenario)
     bus = LocalBus()
     faults = channel_faults(scenario)
     bus.channel = faults

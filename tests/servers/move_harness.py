@@ -5,11 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 from overdrive.bus.local import LocalBus
+from overdrive.messages import Topic
 from overdrive.player import channel_faults
 from overdrive.recorder import Recorder
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime
 from overdrive.scenario import parse_scenario
-from overdrive.messages import Topic
 from overdrive.sim import build_nodes
 
 

@@ -1,0 +1,554 @@
+"""The move server (seed 004): the only thing the planner talks to.
+
+It accepts MOVE / REVERSE / STOP (``MoveCommand``), answers every one (``MoveReply``: accepted,
+or rejected with ``invalid`` / ``infeasible`` / ``not_ready`` / ``busy``, see
+``move_feasibility``), and executes the accepted ones through the driving module (seed 003),
+never the speed server directly:
+
+- ``DriveMode``: the speed-server state to reach (``run`` to move; the driving module
+  sequences parked -> paused -> idle -> run and the gear changes), the direction, and a
+  nonzero fault for an emergency stop;
+- ``AdvanceAuthorization`` (source ``move``): the distance left of the command, from where the
+  vehicle is now, every period; 0 to stop;
+- ``MaxSpeed`` (source ``move``): the command's maximum speed after the speed reductions
+  (``move_conditions``) and the adaptive caps (``adaptive``);
+- ``SteeringRequest``: the command's curvature.
+
+A new command replaces the current one at once; without one the vehicle stops at the end of
+the distance (the authorization runs out). Progress comes from the GPS/INS odometer.
+
+Independently of the planner, the forward radar is checked every period: a target closer than
+the stopping distance (dynamics, with the brake estimate) plus a margin is an emergency stop
+(fault to the speed server through the driving module, authorization 0, ``Notice(kind="estop")``).
+The stop latches until a new command is accepted; see docs/move-server.md for the rules.
+
+Outputs every period: the four driving inputs above, ``MoveStatus``; ``MoveReply`` per
+command; ``ActuatorEstimates`` on ``move/estimates`` every ``estimates_period_s``; ``Notice``
+for e-stops, speed reductions (when they start) and rejected inputs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import msgspec
+
+from overdrive.dynamics import (
+    DEFAULT_ENVELOPE,
+    Ellipse,
+    EnvelopeConfig,
+    ellipse_for,
+    lateral_speed_limit_mps,
+    max_safe_speed_mps,
+    stopping_distance_m,
+)
+from overdrive.messages import (
+    AdvanceAuthorization,
+    DriveMode,
+    DrivingStatus,
+    GpsIns,
+    Imu,
+    MaxSpeed,
+    MoveCommand,
+    MoveReply,
+    MoveStatus,
+    Notice,
+    Radar,
+    SpeedState,
+    SteerCommand,
+    SteeringRequest,
+    Topic,
+    VehicleStatus,
+    WheelSpeed,
+)
+from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
+from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
+from overdrive.servers.move_feasibility import Situation, check_command, direction_of
+from overdrive.vehicle.presets import VehicleParams
+
+SOURCE = "move"
+TIME_EPS_S = 1e-9
+
+# --------------------------------------------------------------------------- phases (table)
+
+PHASES = ("idle", "starting", "shifting", "moving", "stopping", "estopped")
+"""``MoveStatus.phase`` values."""
+
+EVENTS: dict[str, str] = {
+    "command_start": "MOVE/REVERSE accepted; the speed server is not in run yet",
+    "command_shift": "MOVE/REVERSE accepted in the other direction: stop, shift through idle",
+    "command_run": "MOVE/REVERSE accepted; the speed server is in run in that direction",
+    "stop_cmd": "STOP accepted",
+    "ready": "the speed server reached run in the command's direction",
+    "lost": "the speed server left run (or the gear changed direction) during a move",
+    "done": "the distance is used up and the vehicle stands",
+    "stopped": "the vehicle stands after a STOP",
+    "estop": "radar target inside the stopping distance plus margin",
+}
+
+_COMMANDS = {"command_start": "starting", "command_shift": "shifting", "command_run": "moving"}
+
+TRANSITIONS: dict[str, dict[str, str]] = {
+    "idle": {**_COMMANDS, "stop_cmd": "stopping", "estop": "estopped"},
+    "starting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped"},
+    "shifting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped"},
+    "moving": {**_COMMANDS, "lost": "starting", "done": "idle", "stop_cmd": "stopping",
+               "estop": "estopped"},
+    "stopping": {**_COMMANDS, "stopped": "idle", "estop": "estopped"},
+    "estopped": dict(_COMMANDS),
+}
+"""``TRANSITIONS[phase][event] -> phase``; an event a phase does not list leaves it as is."""
+
+
+def next_phase(phase: str, event: str | None) -> str:
+    if event is None:
+        return phase
+    return TRANSITIONS[phase].get(event, phase)
+
+
+def mermaid_diagram() -> str:
+    lines = ["stateDiagram-v2", "    [*] --> idle"]
+    for phase in PHASES:
+        for event, target in TRANSITIONS[phase].items():
+            lines.append(f"    {phase} --> {target} : {event}")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- config
+
+class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """Tuning of the move server; every default says where it comes from."""
+
+    friction: float = 0.8              # assumed tyre-road friction (scenario default; no sensor)
+    envelope: EnvelopeConfig = DEFAULT_ENVELOPE
+    reaction_s: float = 0.7            # the driving module's latency allowance (same figure)
+    stop_margin_m: float = 0.05        # the driving module aims this far before the end
+    creep_speed_mps: float = 0.3       # the driving module's terminal phase
+    gear_speed_fraction: float = 0.9   # speeds above this share of a gear's top are unreachable
+    standstill_mps: float = 0.05       # plant's shift threshold; 2.5 sigma of GPS speed noise
+    stopped_hold_s: float = 0.3        # standing this long counts as stopped
+    done_tolerance_m: float = 0.5      # a move is done standing within this of its end
+    estop_margin_m: float = 2.0        # radar range beyond the stopping distance that must stay free
+    estop_reaction_s: float = 0.25     # SPSS period 0.1 + brake lag 0.08 + 2 ticks, with margin
+    estop_fault_code: int = 40         # client fault code (1..999) forwarded to the speed server
+    turn_in_m: float = 3.0             # slow steering: travel at most this while it catches up
+    turn_in_min_mps: float = 1.0       # ... but never demand less than this for it
+    estimates_period_s: float = 0.1
+    adaptive: AdaptiveConfig = AdaptiveConfig()
+    conditions: ConditionConfig = ConditionConfig()
+
+
+class ActiveCommand(msgspec.Struct, frozen=True):
+    command: MoveCommand
+    direction: str
+    odometer0_m: float
+
+
+# --------------------------------------------------------------------------- node
+
+class MoveServer:
+    """Seed-004 move server node (see the module docstring)."""
+
+    name = "move"
+    period_s = 0.01
+    subscriptions = (Topic.MOVE_COMMAND, Topic.SPEED_STATE, Topic.DRIVING_STATUS, Topic.GPS_INS,
+                     Topic.IMU, Topic.RADAR, Topic.VEHICLE_STATUS, Topic.WHEEL_SPEED, Topic.STEER)
+
+    def __init__(self, params: VehicleParams, *, config: MoveServerConfig | None = None) -> None:
+        self.params = params
+        self.config = cfg = config or MoveServerConfig()
+        if not (math.isfinite(cfg.friction) and cfg.friction > 0.0):
+            raise ValueError(f"friction: must be a positive finite number, got {cfg.friction}")
+        self.ellipse = ellipse_for(params, cfg.friction, cfg.envelope)
+        self.model = ActuatorModel(params, cfg.adaptive)
+        self.monitor = ConditionMonitor(params, cfg.conditions)
+        self.phase = "idle"
+        self.active: ActiveCommand | None = None
+        self.last_command_id = 0
+        self.direction = "forward"
+        self.curvature_1pm = 0.0
+        self.engaged = False            # a MOVE/REVERSE has been accepted: keep the engine up
+        self.hold_state: str | None = None
+        # e-stop
+        self.latched = False
+        self.fault_active = False
+        self.estop_reason = ""
+        # inputs
+        self.gps: GpsIns | None = None
+        self.gps_s = -math.inf
+        self.imu: Imu | None = None
+        self.radar: Radar | None = None
+        self.status: VehicleStatus | None = None
+        self.speed_state: SpeedState | None = None
+        self.driving: DrivingStatus | None = None
+        self.wheel_mps: float | None = None
+        self.steer_cmd_pct: float | None = None
+        self.last_now_s: float | None = None
+        self.stopped_since_s: float | None = None
+        self.next_estimates_s = -math.inf
+        self.limit_mps = 0.0
+        self.remaining_m = 0.0
+        self._sensor_rejection = ""
+
+    # ------------------------------------------------------------------ helpers
+
+    @property
+    def speed_mps(self) -> float:
+        return self.gps.speed_mps if self.gps is not None else 0.0
+
+    @property
+    def odometer_m(self) -> float:
+        return self.gps.odometer_m if self.gps is not None else 0.0
+
+    def _stopped(self, now_s: float) -> bool:
+        return (self.stopped_since_s is not None
+                and now_s - self.stopped_since_s >= self.config.stopped_hold_s - TIME_EPS_S)
+
+    def _server_direction(self) -> int:
+        """Direction of the gear the speed server reports (0: none / not in run)."""
+        ss = self.speed_state
+        if ss is None or ss.gear not in self.params.gear_names:
+            return 0
+        return self.params.gear(ss.gear).direction
+
+    def _ready(self, direction: str) -> bool:
+        ss = self.speed_state
+        want = -1 if direction == "reverse" else 1
+        return ss is not None and ss.state == "run" and self._server_direction() == want
+
+    def _vehicle_direction(self) -> int:
+        status = self.status
+        if status is None or status.gear not in self.params.gear_names:
+            return 0
+        return self.params.gear(status.gear).direction
+
+    def _brake_ellipse(self) -> Ellipse:
+        """The planning ellipse with its longitudinal axis no larger than the brakes now give."""
+        e = self.ellipse
+        brake = self.model.brake_decel_mps2 * (1.0 - self.config.envelope.derate)
+        return Ellipse(lon_mps2=min(e.lon_mps2, brake), lat_mps2=e.lat_mps2)
+
+    def _grade_roll(self) -> tuple[float, float]:
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        roll = self.gps.roll_rad if self.gps is not None else 0.0
+        return (-pitch if self.direction == "reverse" else pitch), roll
+
+    # ------------------------------------------------------------------ inputs
+
+    def _finite_sensor(self, ok: bool, reason: str, out: list) -> bool:
+        if ok:
+            return True
+        if reason != self._sensor_rejection:
+            self._sensor_rejection = reason
+            out.append((Topic.NOTICE, Notice(kind="rejected", source=SOURCE, code="sensor",
+                                             reason=reason)))
+        return False
+
+    def _receive(self, now_s: float, topic: str, msg: Any, commands: list, out: list) -> None:
+        if topic == Topic.MOVE_COMMAND:
+            commands.append(msg)
+        elif isinstance(msg, GpsIns):
+            if self._finite_sensor(_finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad,
+                                           msg.roll_rad), "gps_ins: not finite", out):
+                self.gps, self.gps_s = msg, now_s
+        elif isinstance(msg, Imu):
+            if self._finite_sensor(_finite(msg.accel_x_mps2, msg.accel_z_mps2),
+                                   "imu: not finite", out):
+                self.imu = msg
+        elif isinstance(msg, Radar):
+            if self._finite_sensor(_finite(msg.range_m), "radar: range not finite", out):
+                self.radar = msg
+        elif isinstance(msg, VehicleStatus):
+            if self._finite_sensor(_finite(msg.steer_pct, msg.throttle_pct, msg.brake_pct),
+                                   "vehicle_status: not finite", out):
+                self.status = msg
+        elif isinstance(msg, WheelSpeed):
+            if self._finite_sensor(_finite(msg.speed_mps), "wheel_speed: not finite", out):
+                self.wheel_mps = msg.speed_mps
+        elif isinstance(msg, SpeedState):
+            self.speed_state = msg
+        elif isinstance(msg, DrivingStatus):
+            self.driving = msg
+        elif isinstance(msg, SteerCommand) and _finite(msg.steer_pct):
+            self.steer_cmd_pct = msg.steer_pct
+
+    # ------------------------------------------------------------------ step
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        commands: list[Any] = []
+        for topic, msg in inbox:
+            self._receive(now_s, topic, msg, commands, out)
+        dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
+        self.last_now_s = now_s
+        cfg = self.config
+        if self.hold_state is None and self.status is not None:
+            # before the first command, keep the vehicle as it was found (engine off: parked)
+            self.hold_state = "run" if self.status.engine == "running" else "parked"
+        if abs(self.speed_mps) < cfg.standstill_mps:
+            if self.stopped_since_s is None:
+                self.stopped_since_s = now_s
+        else:
+            self.stopped_since_s = None
+
+        self._learn(dt_s)
+        for cmd in commands:
+            self._command(now_s, cmd, out)
+
+        event = self._classify(now_s, out)
+        self._set_phase(next_phase(self.phase, event))
+        self._limits(now_s, out)
+        self._outputs(now_s, out)
+        return out
+
+    def _learn(self, dt_s: float) -> None:
+        status, gps, imu = self.status, self.gps, self.imu
+        if status is not None:
+            if gps is not None and imu is not None and not status.shifting:
+                direction = self._vehicle_direction()
+                self.model.update_pedals(dt_s, direction, status.gear, gps.speed_mps,
+                                         imu.accel_x_mps2, gps.pitch_rad, status.throttle_pct,
+                                         status.brake_pct, status.traction_control)
+            self.model.update_steering(dt_s, self.steer_cmd_pct, status.steer_pct)
+        if imu is not None:
+            self.monitor.update_imu(dt_s, imu.accel_z_mps2)
+
+    # ------------------------------------------------------------------ commands
+
+    def _situation(self, now_s: float) -> Situation:
+        cfg = self.config
+        status, ss, radar = self.status, self.speed_state, self.radar
+        v = self.speed_mps
+        moving = ""
+        if abs(v) > cfg.standstill_mps * 2.0:
+            moving = "forward" if v > 0.0 else "reverse"
+        return Situation(
+            have_position=self.gps is not None, speed_mps=v,
+            pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
+            safety_mode=status.safety_mode if status is not None else "drive-by-wire",
+            computer_speed=status.computer_speed if status is not None else True,
+            speed_server_estop=bool(ss is not None and ss.estop and not self.latched),
+            speed_server_fault=ss.fault_message if ss is not None else "",
+            moving_direction=moving,
+            shifting_to=self.direction if self.phase == "shifting" else "",
+            estop_braking=self.phase == "estopped" and self.fault_active,
+            latched_estop=self.latched,
+            radar_target=bool(radar is not None and radar.target),
+            radar_range_m=radar.range_m if radar is not None else math.inf,
+            ellipse=self._brake_ellipse(), standstill_mps=cfg.standstill_mps,
+            obstacle_margin_m=cfg.estop_margin_m)
+
+    def _command(self, now_s: float, cmd: Any, out: list) -> None:
+        verdict = check_command(cmd, self._situation(now_s), self.params,
+                                self.config.gear_speed_fraction)
+        command_id = getattr(cmd, "command_id", 0)
+        kind = getattr(cmd, "kind", "stop")
+        if not isinstance(command_id, int) or isinstance(command_id, bool):
+            command_id = 0
+        if kind not in ("move", "reverse", "stop"):
+            kind = "stop"
+        if verdict is not None:
+            out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
+                                                    accepted=False, code=verdict.code,
+                                                    message=verdict.message)))
+            return
+        out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
+                                                accepted=True)))
+        self.last_command_id = command_id
+        if cmd.kind == "stop":
+            self.active = None
+            self._set_phase(next_phase(self.phase, "stop_cmd"))
+            return
+        direction = direction_of(cmd.kind)
+        if direction != self.direction:
+            # the other direction's authorization is void from now on
+            out.append((Topic.ADVANCE, AdvanceAuthorization(
+                source=SOURCE, distance_m=0.0, reverse=self.direction == "reverse")))
+        if self._ready(direction):
+            event = "command_run"
+        elif self._vehicle_direction() not in (0, -1 if direction == "reverse" else 1) \
+                or (self.phase == "shifting" and direction != self.direction):
+            event = "command_shift"
+        else:
+            event = "command_start"
+        self.direction = direction
+        self.engaged = True
+        self.latched = False
+        self.fault_active = False
+        self.estop_reason = ""
+        self.curvature_1pm = float(cmd.curvature_1pm)
+        self.active = ActiveCommand(cmd, direction, self.odometer_m)
+        self._set_phase(next_phase(self.phase, event))
+
+    def _set_phase(self, phase: str) -> None:
+        self.phase = phase
+
+    # ------------------------------------------------------------------ per period
+
+    def _remaining(self) -> float:
+        if self.active is None:
+            return 0.0
+        used = self.odometer_m - self.active.odometer0_m
+        return max(0.0, self.active.command.distance_m - used)
+
+    def _classify(self, now_s: float, out: list) -> str | None:
+        """The period's event (after the commands), estop first."""
+        cfg = self.config
+        self.remaining_m = self._remaining()
+        if self._collision_check(now_s, out):
+            return "estop"
+        phase = self.phase
+        if phase == "estopped":
+            if self.fault_active and self._stopped(now_s):
+                self.fault_active = False     # brakes held by idle from now on; latch stays
+            return None
+        if phase in ("starting", "shifting") and self.active is not None:
+            return "ready" if self._ready(self.active.direction) else None
+        if phase == "moving" and self.active is not None:
+            if self.remaining_m <= cfg.done_tolerance_m and self._stopped(now_s):
+                self.active = None
+                return "done"
+            if not self._ready(self.active.direction):
+                return "lost"
+            return None
+        if phase == "stopping" and self._stopped(now_s):
+            return "stopped"
+        return None
+
+    def _collision_check(self, now_s: float, out: list) -> bool:
+        """The VORAD failsafe: True on the period an emergency stop starts."""
+        cfg = self.config
+        radar = self.radar
+        if self.phase == "estopped" or radar is None or not radar.target:
+            return False
+        v = self.speed_mps
+        forward_cmd = self.active is not None and self.active.direction == "forward"
+        if not (v > cfg.standstill_mps or forward_cmd):
+            return False
+        grade = self.gps.pitch_rad if self.gps is not None else 0.0   # forward travel
+        roll = self.gps.roll_rad if self.gps is not None else 0.0
+        ell = self._brake_ellipse()
+        k = self.driving.curvature_1pm if self.driving is not None else self.curvature_1pm
+        speed = max(v, 0.0)
+        braking = stopping_distance_m(ell, speed, k, grade, roll, cfg.estop_reaction_s)
+        if not math.isfinite(braking):
+            braking = stopping_distance_m(ell, speed, 0.0, grade, roll, cfg.estop_reaction_s)
+        reach = braking + cfg.estop_margin_m
+        if radar.range_m >= reach:
+            return False
+        self.latched = True
+        self.fault_active = True
+        self.active = None
+        self.estop_reason = (f"radar: obstacle at {radar.range_m:.1f} m inside stopping "
+                             f"distance {braking:.1f} m + margin {cfg.estop_margin_m:.1f} m")
+        out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code="radar",
+                                         reason=self.estop_reason)))
+        return True
+
+    def _limits(self, now_s: float, out: list) -> None:
+        """Speed limit for the driving module: command, reductions, adaptive caps."""
+        active = self.active
+        ss, status, driving = self.speed_state, self.status, self.driving
+        maxspeed = active.command.maxspeed_mps if active is not None else 0.0
+        grade, roll = self._grade_roll()
+        k = self.curvature_1pm
+        v_lat = lateral_speed_limit_mps(self.ellipse, k, grade, roll)
+        actuator_cap, why = self._actuator_cap(maxspeed, k, grade, roll)
+        self.monitor.update(
+            now_s, maxspeed_mps=maxspeed,
+            pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
+            speed_mps=self.speed_mps, wheel_speed_mps=self.wheel_mps,
+            traction_control=bool(status is not None and status.traction_control),
+            hint=ss.hint if ss is not None else "none",
+            goal_speed_mps=driving.goal_speed_mps if driving is not None else 0.0,
+            throttle_pct=status.throttle_pct if status is not None else 0.0,
+            safety_mode=status.safety_mode if status is not None else "drive-by-wire",
+            speed_server_estop=bool(ss is not None and ss.estop and not self.latched),
+            gps_age_s=now_s - self.gps_s if self.gps is not None else 0.0,
+            lateral_cap_mps=v_lat, degraded=self.model.degraded(),
+            actuator_cap_mps=actuator_cap, actuator_reason=why)
+        if active is not None and self.phase not in ("stopping", "estopped"):
+            for r in self.monitor.started:
+                out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
+                                                 code=r.code, reason=r.reason)))
+        limit = min(maxspeed, self.monitor.cap_mps())
+        self.limit_mps = max(limit, 0.0) if active is not None else 0.0
+
+    def _actuator_cap(self, maxspeed: float, k: float, grade: float,
+                      roll: float) -> tuple[float, str]:
+        """Caps from the actuator estimates: weak brakes and slow steering."""
+        cfg, p, model = self.config, self.params, self.model
+        cap, reasons = math.inf, []
+        e_b = model.brake.value
+        if e_b < cfg.adaptive.degraded_brake:
+            v = maxspeed * math.sqrt(e_b)   # same stopping distance at the reduced deceleration
+            cap = min(cap, v)
+            reasons.append(f"brake at {e_b:.0%}: speed x {math.sqrt(e_b):.2f}")
+        brake_ell = self._brake_ellipse()
+        if brake_ell.lon_mps2 < self.ellipse.lon_mps2:
+            d = self.remaining_m - cfg.stop_margin_m
+            v = max_safe_speed_mps(brake_ell, d, k, grade, roll, cfg.reaction_s)
+            if v <= cfg.creep_speed_mps:
+                v = 0.0
+            cap = min(cap, v)
+        e_s = model.steering.value
+        if e_s < cfg.adaptive.degraded_steering:
+            catch_up_s = model.steer_time_s() - 3.0 * p.steer_lag_s
+            if catch_up_s > 0.05:
+                v = max(cfg.turn_in_min_mps, cfg.turn_in_m / catch_up_s)
+                cap = min(cap, v)
+            reasons.append(f"steering rate at {e_s:.0%}")
+        if model.throttle.value < cfg.adaptive.degraded_throttle:
+            reasons.append(f"throttle at {model.throttle.value:.0%}")
+        return cap, ("actuator response degraded: " + "; ".join(reasons)) if reasons else ""
+
+    # ------------------------------------------------------------------ outputs
+
+    def _drive_mode(self) -> DriveMode | None:
+        cfg = self.config
+        if self.phase == "estopped":
+            if self.fault_active:
+                return DriveMode(state="run", direction=self.direction,  # type: ignore[arg-type]
+                                 fault=cfg.estop_fault_code, reason=self.estop_reason)
+            return DriveMode(state="idle", direction=self.direction,  # type: ignore[arg-type]
+                             reason="collision e-stop latched")
+        if not self.engaged:
+            if self.hold_state is None:
+                return None
+            return DriveMode(state=self.hold_state, direction="forward")  # type: ignore[arg-type]
+        return DriveMode(state="run", direction=self.direction)  # type: ignore[arg-type]
+
+    def _outputs(self, now_s: float, out: list) -> None:
+        cfg = self.config
+        mode = self._drive_mode()
+        if mode is not None:
+            out.append((Topic.DRIVE_MODE, mode))
+        moving = self.phase in ("starting", "shifting", "moving") and self.active is not None
+        authorized = self.remaining_m if moving else 0.0
+        out.append((Topic.ADVANCE, AdvanceAuthorization(
+            source=SOURCE, distance_m=authorized, reverse=self.direction == "reverse")))
+        out.append((Topic.MAX_SPEED, MaxSpeed(source=SOURCE,
+                                              speed_mps=self.limit_mps if moving else 0.0)))
+        out.append((Topic.STEERING, SteeringRequest(curvature_1pm=self.curvature_1pm)))
+        reason = self.estop_reason if self.latched else "; ".join(
+            r.reason for r in self.monitor.active.values()) if moving else ""
+        out.append((Topic.MOVE_STATUS, MoveStatus(
+            command_id=self.last_command_id, phase=self.phase,
+            remaining_m=self.remaining_m if self.active is not None else 0.0,
+            latched_estop=self.latched, reason=reason)))
+        if now_s + TIME_EPS_S >= self.next_estimates_s:
+            out.append((ESTIMATES_TOPIC, self.model.message()))
+            self.next_estimates_s += cfg.estimates_period_s
+            if self.next_estimates_s <= now_s + TIME_EPS_S:
+                self.next_estimates_s = now_s + cfg.estimates_period_s
+
+
+def _finite(*values: Any) -> bool:
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+               for v in values)
+
+
+__all__ = ["EVENTS", "PHASES", "TRANSITIONS", "MoveServer", "MoveServerConfig",
+           "mermaid_diagram", "next_phase"]

@@ -1,0 +1,307 @@
+"""The move server node stepped by hand: replies, driving-module inputs, e-stop, phases."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+
+from overdrive.messages import (
+    AdvanceAuthorization,
+    DriveMode,
+    GpsIns,
+    Imu,
+    MaxSpeed,
+    MoveCommand,
+    MoveReply,
+    MoveStatus,
+    Notice,
+    Radar,
+    SpeedState,
+    SteeringRequest,
+    Topic,
+    VehicleStatus,
+)
+from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorEstimates
+from overdrive.servers.move import (
+    EVENTS,
+    PHASES,
+    TRANSITIONS,
+    MoveServer,
+    mermaid_diagram,
+    next_phase,
+)
+from overdrive.vehicle.presets import G_MPS2
+
+
+def sensors(params, *, speed: float = 0.0, odo: float = 0.0, state: str = "run",
+            gear: str | None = None, engine: str = "running", mode: str = "drive-by-wire",
+            radar: float | None = None, pitch: float = 0.0, estop: bool = False) -> list:
+    gear = gear or params.drive_gear
+    return [
+        (Topic.VEHICLE_STATUS, VehicleStatus(
+            gear=gear, shifting=False, engine=engine, engine_rpm=1000.0,  # type: ignore[arg-type]
+            start_failed=False, traction_control=False, steer_pct=0.0, throttle_pct=0.0,
+            brake_pct=0.0, safety_mode=mode)),
+        (Topic.GPS_INS, GpsIns(x_m=odo, y_m=0.0, heading_rad=0.0, speed_mps=speed,
+                               pitch_rad=pitch, roll_rad=0.0, odometer_m=odo)),
+        (Topic.IMU, Imu(accel_x_mps2=0.0, accel_y_mps2=0.0, accel_z_mps2=G_MPS2,
+                        yaw_rate_rps=0.0)),
+        (Topic.RADAR, Radar(target=radar is not None,
+                            range_m=radar if radar is not None else params.radar_range_m)),
+        (Topic.SPEED_STATE, SpeedState(speed_mps=speed, accel_mps2=0.0, gear=gear,
+                                       state=state, estop=estop)),  # type: ignore[arg-type]
+    ]
+
+
+def last(out: list, topic: str) -> Any:
+    found = [m for t, m in out if t == topic]
+    return found[-1] if found else None
+
+
+def all_of(out: list, topic: str) -> list:
+    return [m for t, m in out if t == topic]
+
+
+def run(node: MoveServer, t0: float, seconds: float, cmds: tuple = (), **kw) -> list:
+    """Step ``node`` for ``seconds`` with steady sensors; ``cmds`` on the first step; all outputs."""
+    out: list = []
+    n = max(1, round(seconds / 0.01))
+    for i in range(n):
+        inbox = sensors(node.params, **kw)
+        if i == 0:
+            inbox += [(Topic.MOVE_COMMAND, c) for c in cmds]
+        out += node.step(t0 + i * 0.01, inbox)
+    return out
+
+
+def cmd(kind: str = "move", d: float = 10.0, v: float = 3.0, k: float = 0.0, cid: int = 1):
+    return MoveCommand(kind=kind, command_id=cid, distance_m=d, maxspeed_mps=v,  # type: ignore[arg-type]
+                       curvature_1pm=k)
+
+
+# ----------------------------------------------------------------------------- table
+
+def test_transition_table_is_closed() -> None:
+    for phase, row in TRANSITIONS.items():
+        assert phase in PHASES
+        for event, target in row.items():
+            assert event in EVENTS and target in PHASES
+    assert next_phase("moving", None) == "moving"
+    assert next_phase("estopped", "stop_cmd") == "estopped"       # a STOP keeps the latch
+    assert next_phase("moving", "estop") == "estopped"
+    assert "estopped --> starting : command_start" in mermaid_diagram()
+
+
+# ----------------------------------------------------------------------------- replies
+
+def test_every_command_gets_one_reply(preset) -> None:
+    node = MoveServer(preset)
+    commands = [cmd(cid=1), cmd("stop", cid=2), cmd(d=math.nan, cid=3),
+                cmd(k=1.0, cid=4), cmd("reverse", v=1.0, cid=5)]
+    out = node.step(0.0, sensors(preset) + [(Topic.MOVE_COMMAND, c) for c in commands])
+    replies = all_of(out, Topic.MOVE_REPLY)
+    assert [r.command_id for r in replies] == [1, 2, 3, 4, 5]
+    assert [r.code for r in replies] == ["ok", "ok", "invalid", "infeasible", "ok"]
+    assert all(isinstance(r, MoveReply) for r in replies)
+
+
+def test_garbage_on_the_command_topic_is_rejected_not_crashed(preset) -> None:
+    node = MoveServer(preset)
+    out = node.step(0.0, [*sensors(preset), (Topic.MOVE_COMMAND, "MOVE"), (Topic.MOVE_COMMAND, None)])
+    assert [r.code for r in all_of(out, Topic.MOVE_REPLY)] == ["invalid", "invalid"]
+
+
+def test_not_ready_without_position_or_in_pause(preset) -> None:
+    node = MoveServer(preset)
+    out = node.step(0.0, [(Topic.MOVE_COMMAND, cmd())])
+    assert last(out, Topic.MOVE_REPLY).code == "not_ready"
+    out = node.step(0.01, [*sensors(preset, mode="software-pause"), (Topic.MOVE_COMMAND, cmd())])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert reply.code == "not_ready" and "software-pause" in reply.message
+    out = node.step(0.02, [*sensors(preset, estop=True), (Topic.MOVE_COMMAND, cmd())])
+    assert last(out, Topic.MOVE_REPLY).code == "not_ready"
+
+
+def test_infeasible_on_steep_ground(preset) -> None:
+    node = MoveServer(preset)
+    out = node.step(0.0, [*sensors(preset, pitch=preset.max_pitch_rad * 1.05), (Topic.MOVE_COMMAND, cmd())])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert reply.code == "infeasible" and "grade" in reply.message
+
+
+def test_reverse_while_rolling_forward_is_busy(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0),), speed=3.0, odo=0.0)
+    out = node.step(0.5, [*sensors(preset, speed=3.0, odo=1.0), (Topic.MOVE_COMMAND, cmd("reverse", v=1.0, cid=2))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert reply.code == "busy" and "standstill" in reply.message
+    # the forward command keeps running
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(49.0)
+
+
+# ----------------------------------------------------------------------------- execution
+
+def test_before_any_command_a_parked_vehicle_stays_parked(preset) -> None:
+    node = MoveServer(preset)
+    out = node.step(0.0, sensors(preset, state="parked", engine="off", gear=preset.park_gear))
+    assert last(out, Topic.DRIVE_MODE) == DriveMode(state="parked", direction="forward")
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+    assert last(out, Topic.MAX_SPEED).speed_mps == 0.0
+    # a STOP does not start the engine either
+    out = node.step(0.01, [*sensors(preset, state="parked", engine="off", gear=preset.park_gear), (Topic.MOVE_COMMAND, cmd("stop"))])
+    assert last(out, Topic.DRIVE_MODE).state == "parked"
+
+
+def test_move_from_parked_requests_run_and_authorizes_the_distance(preset) -> None:
+    node = MoveServer(preset)
+    node.step(0.0, sensors(preset, state="parked", engine="off", gear=preset.park_gear))
+    out = node.step(0.01, [*sensors(preset, state="parked", engine="off", gear=preset.park_gear), (Topic.MOVE_COMMAND, cmd(d=30.0, v=8.0, k=-0.02))])
+    assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="forward")
+    assert last(out, Topic.ADVANCE) == AdvanceAuthorization(source="move", distance_m=30.0)
+    assert last(out, Topic.MAX_SPEED) == MaxSpeed(source="move", speed_mps=8.0)
+    assert last(out, Topic.STEERING) == SteeringRequest(curvature_1pm=-0.02)
+    assert last(out, Topic.MOVE_STATUS).phase == "starting"
+    # run reached: moving; the authorization is used up by the odometer
+    out = run(node, 0.02, 0.1, speed=2.0, odo=12.5)
+    assert last(out, Topic.MOVE_STATUS).phase == "moving"
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(17.5)
+    assert last(out, Topic.MOVE_STATUS).remaining_m == pytest.approx(17.5)
+
+
+def test_new_command_replaces_from_where_the_vehicle_is(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.2, (cmd(d=30.0),), speed=3.0, odo=5.0)
+    out = run(node, 0.2, 0.05, (cmd(d=12.0, v=4.0, cid=2),), speed=3.0, odo=9.0)
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(12.0)
+    assert last(out, Topic.MAX_SPEED).speed_mps == pytest.approx(4.0)
+    assert last(out, Topic.MOVE_STATUS).command_id == 2
+
+
+def test_move_done_when_distance_used_and_standing(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.2, (cmd(d=10.0),), speed=3.0, odo=0.0)
+    out = run(node, 0.2, 0.5, speed=0.0, odo=9.8)
+    assert last(out, Topic.MOVE_STATUS).phase == "idle"
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+    assert last(out, Topic.DRIVE_MODE).state == "run"      # engine kept up for the next command
+
+
+def test_stop_authorizes_nothing(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.2, (cmd(d=50.0),), speed=3.0, odo=0.0)
+    out = run(node, 0.2, 0.05, (cmd("stop", cid=2),), speed=3.0, odo=1.0)
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+    assert last(out, Topic.MAX_SPEED).speed_mps == 0.0
+    assert last(out, Topic.MOVE_STATUS).phase == "stopping"
+    out = run(node, 0.3, 0.5, speed=0.0, odo=3.0)
+    assert last(out, Topic.MOVE_STATUS).phase == "idle"
+
+
+def test_reverse_after_standstill_shifts_and_voids_forward_authorization(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.2, (cmd(d=10.0),), speed=0.0, odo=10.0)
+    out = node.step(0.2, [*sensors(preset, odo=10.0), (Topic.MOVE_COMMAND, cmd("reverse", d=5.0, v=1.0, cid=2))])
+    assert last(out, Topic.MOVE_REPLY).accepted
+    advances = all_of(out, Topic.ADVANCE)
+    assert AdvanceAuthorization(source="move", distance_m=0.0, reverse=False) in advances
+    assert advances[-1] == AdvanceAuthorization(source="move", distance_m=5.0, reverse=True)
+    assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="reverse")
+    assert last(out, Topic.MOVE_STATUS).phase == "shifting"
+    out = run(node, 0.21, 0.05, speed=-0.5, odo=10.5, gear=preset.reverse_gear)
+    assert last(out, Topic.MOVE_STATUS).phase == "moving"
+
+
+# ----------------------------------------------------------------------------- e-stop
+
+def test_radar_obstacle_inside_stopping_distance_is_an_emergency_stop(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.2, (cmd(d=60.0, v=8.0),), speed=8.0, odo=0.0)
+    out = run(node, 0.2, 0.05, speed=8.0, odo=2.0, radar=40.0)
+    assert last(out, Topic.DRIVE_MODE).fault == 0               # far away: nothing
+    out = node.step(0.3, sensors(preset, speed=8.0, odo=3.0, radar=8.0))
+    mode = last(out, Topic.DRIVE_MODE)
+    assert mode.fault == node.config.estop_fault_code and mode.state == "run"
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+    assert last(out, Topic.MAX_SPEED).speed_mps == 0.0
+    notice = last(out, Topic.NOTICE)
+    assert isinstance(notice, Notice) and notice.kind == "estop" and notice.source == "move"
+    assert notice.reason.startswith("radar: obstacle at 8.0 m inside stopping distance")
+    status = last(out, Topic.MOVE_STATUS)
+    assert status.phase == "estopped" and status.latched_estop
+    # still braking: busy; once stopped the fault is released, the latch stays, idle is held
+    out = node.step(0.31, [*sensors(preset, speed=4.0, odo=4.0, radar=7.0), (Topic.MOVE_COMMAND, cmd("reverse", v=1.0, cid=2))])
+    assert last(out, Topic.MOVE_REPLY).code == "busy"
+    out = run(node, 0.4, 0.5, speed=0.0, odo=5.0, radar=6.0)
+    assert last(out, Topic.DRIVE_MODE) == DriveMode(state="idle", direction="forward",
+                                                    reason="collision e-stop latched")
+    assert last(out, Topic.MOVE_STATUS).latched_estop
+    out = run(node, 0.9, 0.02, (cmd(d=20.0, cid=3),), speed=0.0, odo=5.0, radar=6.0)
+    assert last(out, Topic.MOVE_REPLY).code == "not_ready"
+    out = run(node, 1.0, 0.02, (cmd("stop", cid=4),), speed=0.0, odo=5.0, radar=6.0)
+    assert last(out, Topic.MOVE_STATUS).latched_estop            # STOP keeps the latch
+    # obstacle gone: a new MOVE clears the latch and resumes
+    out = run(node, 1.1, 0.02, (cmd(d=20.0, cid=5),), speed=0.0, odo=5.0, state="idle")
+    assert last(out, Topic.MOVE_REPLY).accepted
+    status = last(out, Topic.MOVE_STATUS)
+    assert not status.latched_estop and status.phase == "starting"
+    assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="forward")
+
+
+@pytest.mark.parametrize("speed", [2.0, 5.0, 8.0, 12.0])
+def test_estop_threshold_swept_around_the_stopping_distance(preset, speed: float) -> None:
+    probe = MoveServer(preset)
+    run(probe, 0.0, 0.05, (cmd(d=100.0, v=speed),), speed=speed)
+    from overdrive.dynamics import stopping_distance_m
+    reach = stopping_distance_m(probe._brake_ellipse(), speed, 0.0, 0.0, 0.0,
+                                probe.config.estop_reaction_s) + probe.config.estop_margin_m
+    for rng, expect in ((reach + 0.05, False), (reach - 0.05, True)):
+        node = MoveServer(preset)
+        run(node, 0.0, 0.05, (cmd(d=100.0, v=speed),), speed=speed)
+        out = node.step(0.05, sensors(preset, speed=speed, radar=rng))
+        assert (last(out, Topic.DRIVE_MODE).fault != 0) is expect
+
+
+def test_no_estop_for_a_target_while_reversing(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.1, (cmd("reverse", d=5.0, v=1.0),), speed=-1.0,
+        gear=preset.reverse_gear, radar=1.0)
+    assert node.phase == "moving" and not node.latched
+
+
+# ----------------------------------------------------------------------------- outputs
+
+def test_estimates_published_at_10_hz(preset) -> None:
+    node = MoveServer(preset)
+    count = 0
+    for i in range(100):
+        out = node.step(i * 0.01, sensors(preset))
+        count += len(all_of(out, ESTIMATES_TOPIC))
+        assert all(isinstance(m, ActuatorEstimates) for m in all_of(out, ESTIMATES_TOPIC))
+    assert count == 10
+
+
+def test_non_finite_sensor_is_ignored_with_a_notice(preset) -> None:
+    node = MoveServer(preset)
+    node.step(0.0, sensors(preset, odo=3.0))
+    bad = GpsIns(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=math.nan, pitch_rad=0.0,
+                 roll_rad=0.0, odometer_m=math.nan)
+    out = node.step(0.01, [(Topic.GPS_INS, bad)])
+    notices = [n for n in all_of(out, Topic.NOTICE) if n.kind == "rejected"]
+    assert notices and notices[0].code == "sensor"
+    assert node.odometer_m == 3.0
+    assert isinstance(last(out, Topic.MOVE_STATUS), MoveStatus)
+
+
+def test_speed_reduction_notice_when_it_starts(preset) -> None:
+    node = MoveServer(preset)
+    steep = preset.max_pitch_rad * 0.8
+    run(node, 0.0, 0.3, (cmd(d=50.0, v=4.0),), speed=2.0, pitch=steep)
+    out = node.step(0.3, sensors(preset, speed=2.0, pitch=steep))
+    assert last(out, Topic.MAX_SPEED).speed_mps < 4.0
+    assert all_of(out, Topic.NOTICE) == []   # only on the period it started
+    node2 = MoveServer(preset)
+    first = node2.step(0.0, [*sensors(preset, speed=2.0, pitch=steep), (Topic.MOVE_COMMAND, cmd(d=50.0, v=4.0))])
+    codes = [m.code for m in all_of(first, Topic.NOTICE) if m.kind == "speed_reduction"]
+    assert codes == ["steep"]
