@@ -36,11 +36,21 @@ def main() -> None:
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), help="Override the scenario's seed.")
 @click.option("--realtime", is_flag=True, help="Pace the simulation to the wall clock.")
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary table.")
-def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, quiet: bool) -> None:
+@click.option("--live", is_flag=True,
+              help="Serve the run to the Foxglove app (WebSocket on localhost); use with --realtime.")
+@click.option("--live-port", type=click.IntRange(0, 65535), default=8765, show_default=True,
+              help="Port of the --live WebSocket.")
+def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, quiet: bool,
+        live: bool, live_port: int) -> None:
     """Run SCENARIO against the simulated vehicle and write the run folder."""
     from overdrive.scenario import ScenarioError, load_scenario
     from overdrive.sim import default_out_dir, run_scenario
 
+    observers = []
+    if live:
+        from overdrive.obs_cli import start_live
+
+        observers.append(start_live(live_port))
     try:
         loaded = load_scenario(scenario)
         if seed is not None:
@@ -56,12 +66,17 @@ def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, 
                           TimeRemainingColumn(), transient=True) as bar:
                 task = bar.add_task(loaded.name, total=loaded.spec.duration_s)
                 result = run_scenario(loaded, out, keep_trace=False, realtime=realtime,
-                                      progress=lambda now, _t: bar.update(task, completed=now))
+                                      progress=lambda now, _t: bar.update(task, completed=now),
+                                      observers=observers)
         else:
-            result = run_scenario(loaded, out, keep_trace=False, realtime=realtime)
+            result = run_scenario(loaded, out, keep_trace=False, realtime=realtime,
+                                  observers=observers)
     except ScenarioError as exc:
         fail_usage(str(exc))
         return
+    finally:
+        for observer in observers:
+            observer.close()
     if not quiet:
         print_summary(result.summary, out)
     else:
@@ -145,6 +160,10 @@ def print_summary(summary: dict, out: Path) -> None:
 
 def _register_optional() -> None:
     """Subcommands whose modules may be absent from a partial build."""
+    from overdrive.obs_cli import COMMANDS
+
+    for command in COMMANDS:
+        main.add_command(command)
     try:
         from overdrive.jaus.cli import jaus
     except ImportError:

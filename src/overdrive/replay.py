@@ -33,11 +33,15 @@ from overdrive.messages import Topic
 from overdrive.runtime import LockstepRuntime
 
 PLAYED_BACK = ("vehicle", "scenario")
-"""Nodes whose recorded messages are played back instead of running them."""
+"""Nodes played back when the recording does not list its nodes; otherwise every recorded node
+that is not one of the rebuilt servers (e.g. a fake planner) is played back."""
 
 VEHICLE_TOPICS = frozenset({Topic.VEHICLE_STATUS, Topic.WHEEL_SPEED, Topic.GPS_INS, Topic.IMU,
                             Topic.RADAR, Topic.TRUTH})
 SCENARIO_TOPICS = frozenset({Topic.SAFETY, Topic.MOVE_COMMAND, "sim/world", "sim/faults"})
+SERVER_TOPICS = {Topic.SPEED_STATE: "speed", Topic.DRIVING_STATUS: "driving",
+                 Topic.DRIVE_MODE: "move", Topic.MOVE_REPLY: "move", Topic.MOVE_STATUS: "move"}
+"""Topics with a single publisher among the servers (the others carry a ``source``)."""
 REL_TOL = 0.0
 """Replay is bit-for-bit: floats must match exactly (the runtime is deterministic)."""
 
@@ -91,6 +95,7 @@ def _short(msg: Any) -> str:
 class ReplayReport:
     path: str
     servers: list[str]
+    played_back: list[str] = field(default_factory=list)
     ticks: int = 0
     compared: int = 0                          # recorded server outputs compared
     differences: int = 0
@@ -104,7 +109,8 @@ class ReplayReport:
 
     def format(self) -> str:
         lines = [f"replayed {self.path}: {self.ticks} ticks, servers "
-                 f"{', '.join(self.servers) or 'none (open loop)'}, "
+                 f"{', '.join(self.servers) or 'none (open loop)'} (played back: "
+                 f"{', '.join(self.played_back)}), "
                  f"{self.compared} recorded outputs compared"]
         if self.ok:
             lines.append("no differences: every decision matches the recording")
@@ -123,7 +129,8 @@ class ReplayReport:
                      "fields": {k: {"recorded": a, "replayed": b}
                                 for k, (a, b) in self.first.fields.items()},
                      "recorded": self.first.recorded, "replayed": self.first.replayed}
-        return {"path": self.path, "servers": self.servers, "ticks": self.ticks,
+        return {"path": self.path, "servers": self.servers, "played_back": self.played_back,
+                "ticks": self.ticks,
                 "compared": self.compared, "differences": self.differences,
                 "per_node": self.per_node, "first": first}
 
@@ -168,6 +175,8 @@ def infer_publisher(topic: str, msg: dict[str, Any], servers: Sequence[str]) -> 
         return source
     if topic in SCENARIO_TOPICS:
         return "scenario"
+    if topic in SERVER_TOPICS:
+        return SERVER_TOPICS[topic]
     if isinstance(source, str) and source in (*servers, *PLAYED_BACK):
         return source
     if topic in (Topic.ADVANCE, Topic.MAX_SPEED):
@@ -227,18 +236,20 @@ def replay(path: str | Path, *,
     period_s = info.period_s
     servers = (servers_factory or build_servers)(scenario)
     names = [s.name for s in servers]
-    if info.nodes:
-        recorded_servers = [n for n in info.nodes if n not in PLAYED_BACK]
-        if recorded_servers != names:
-            raise ReplayError(f"{path}: recorded with servers {recorded_servers}, this build makes "
-                              f"{names} for its scenario")
-    playback = {name: Playback(name, period_s) for name in PLAYED_BACK}
+    order = info.nodes or [*PLAYED_BACK, *names]
+    if [n for n in order if n in names] != names:
+        raise ReplayError(f"{path}: recorded with nodes {order}; this build makes the servers "
+                          f"{names} for its scenario")
+    # every recorded node that is not a server is played back, in the recorded tick order
+    playback = {name: Playback(name, period_s) for name in order if name not in names}
     captures = [Capture(s) for s in servers]
+    by_name: dict[str, Any] = {**playback, **{c.name: c for c in captures}}
     bus = LocalBus()
     faults = channel_faults(scenario)
     bus.channel = faults
-    runtime = LockstepRuntime([*playback.values(), *captures], bus, period_s)
-    report = ReplayReport(path=str(path), servers=names, per_node={n: 0 for n in names})
+    runtime = LockstepRuntime([by_name[n] for n in order], bus, period_s)
+    report = ReplayReport(path=str(path), servers=names, played_back=list(playback),
+                          per_node={n: 0 for n in names})
     subscribed = {topic for c in captures for topic in c.subscriptions}
     types: dict[str, type | None] = {}
 

@@ -11,7 +11,7 @@ import contextlib
 import importlib
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -108,11 +108,14 @@ def default_out_dir(scenario: Scenario) -> Path:
 def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_trace: bool = True,
                  realtime: bool = False, plot: bool = True,
                  progress: Callable[[float, float], None] | None = None,
-                 period_s: float = DEFAULT_PERIOD_S, nodes: list[Node] | None = None) -> RunResult:
+                 period_s: float = DEFAULT_PERIOD_S, nodes: list[Node] | None = None,
+                 observers: Sequence[Any] = (), record_mcap: bool = True) -> RunResult:
     """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given.
 
     ``nodes`` replaces the scenario's own composition (e.g. the move server's simulation mode,
-    where a fake planner stands in for the scenario player).
+    where a fake planner stands in for the scenario player). ``observers``: extra bus taps with
+    ``set_time(now_s)`` and ``observe(topic, msg)`` (the ``--live`` view); ``record_mcap``:
+    write ``run.mcap`` into the run folder.
     """
     nodes = nodes if nodes is not None else build_nodes(scenario)
     bus = LocalBus()
@@ -125,17 +128,29 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
             out_path.mkdir(parents=True, exist_ok=True)
             trace_file = stack.enter_context(
                 open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
+        taps = list(observers)
+        mcap = None
+        if out_path is not None and record_mcap:
+            from overdrive.mcap_log import McapRecorder
+
+            mcap = stack.enter_context(
+                McapRecorder(out_path / "run.mcap", scenario=scenario, period_s=period_s))
+            taps.append(mcap)
         recorder = Recorder(trace_file, keep_rows=keep_trace)
         bus.tap(recorder.observe)
+        for tap in taps:
+            bus.tap(tap.observe)
         monitor = Monitor(scenario.vehicle, scenario.spec.world.friction, period_s)
         bus.tap(monitor.observe)
-        runtime = LockstepRuntime(nodes, bus, period_s)
+        runtime = LockstepRuntime(mcap.wrap(nodes) if mcap else nodes, bus, period_s)
         duration_s = scenario.spec.duration_s
         wall_start = time.monotonic()
         end_tick = round(duration_s / period_s)
         report_every = max(1, end_tick // 200)
         while runtime.tick <= end_tick:
             faults.now_s = recorder.now_s = monitor.now_s = runtime.tick * period_s
+            for tap in taps:
+                tap.set_time(faults.now_s)
             now_s = runtime.step()
             recorder.tick(now_s)
             monitor.tick(now_s)

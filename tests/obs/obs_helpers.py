@@ -26,7 +26,7 @@ def speed_scenario(**overrides: Any) -> dict[str, Any]:
                                         "state": "run"}},
             {"at_s": 11, "set_speed": {"speed_mps": 2, "accel_mps2": 1.0, "gear": "drive",
                                        "state": "run"}},
-            {"at_s": 12.5, "drop": {"channel": "set_speed", "for_s": 0.1}},
+            {"at_s": 12.5, "drop": {"channel": "set_speed", "for_s": 0.5}},   # e-stop
             {"at_s": 14, "set_speed": {"speed_mps": 0, "accel_mps2": 2.0, "gear": "drive",
                                        "state": "idle"}},
         ],

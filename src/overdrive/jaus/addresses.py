@@ -37,7 +37,9 @@ class JausId(msgspec.Struct, frozen=True, order=True):
         """Parse ``"1.1.33.1"``; raises ``ValueError`` on anything else."""
         parts = text.strip().split(".")
         if len(parts) != 4 or not all(p.isdigit() for p in parts):
-            raise ValueError(f"expected a JAUS ID 'subsystem.node.component.instance', got {text!r}")
+            raise ValueError(
+                f"expected a JAUS ID 'subsystem.node.component.instance', got {text!r}"
+            )
         return cls(*(int(p) for p in parts))
 
     def __str__(self) -> str:

@@ -55,8 +55,9 @@ _SIZE_MASK: Final = 0x0FFF  # reference §1: bytes 12-13 bits 0-11
 _FLAG_SHIFT: Final = 12  # reference §1: bytes 12-13 bits 12-15
 _MAX_SEQUENCE: Final = 0xFFFF  # reference §1: uint16
 
-# byte 0 = priority | ack_nak << 4 | service connection << 6 | experimental << 7;
-# bytes 4-7 and 8-11 read as little-endian u32 give JausId.value directly (instance first).
+# byte 0 = priority | ack_nak << 4 | service connection << 6 | experimental << 7; the IDs
+# (instance, component, node, subsystem) read as a little-endian u32 are
+# subsystem << 24 | node << 16 | component << 8 | instance.
 _HEADER: Final = struct.Struct("<BBHIIHH")
 
 
@@ -80,6 +81,7 @@ class DataFlag(IntEnum):
 
 
 _DATA_FLAGS: Final = frozenset(int(f) for f in DataFlag)
+_SINGLE: Final = int(DataFlag.SINGLE)
 
 
 class Header(msgspec.Struct, frozen=True):
@@ -191,16 +193,16 @@ def decode_header(data: bytes | bytearray | memoryview) -> tuple[Header, int, bo
     if size > MAX_PAYLOAD_SIZE:
         raise JausDecodeError(f"payload size {size} exceeds the {MAX_PAYLOAD_SIZE}-byte maximum")
     header = Header(
-        _jaus_id(dst),
-        _jaus_id(src),
+        _ID_CACHE.get(dst) or _jaus_id(dst),
+        _ID_CACHE.get(src) or _jaus_id(src),
         byte0 & 0x0F,
         (byte0 >> 4) & 0x03,
-        bool(byte0 & 0x40),
+        byte0 & 0x40 != 0,
         byte1,
         data_flag,
         sequence,
     )
-    return header, code, bool(byte0 & 0x80), size
+    return header, code, byte0 & 0x80 != 0, size
 
 
 # --------------------------------------------------------------------------- scaled integers
@@ -356,7 +358,12 @@ class UnknownMessage(Message, frozen=True):
         return {"payload_hex": bytes(self.payload).hex()}
 
 
-_REGISTRY: dict[tuple[bool, int], type[Message]] = {}
+_REGISTRY: dict[int, type[Message]] = {}
+_EXPERIMENTAL_KEY: Final = 0x10000  # registry key = code, plus this for experimental codes
+
+
+def _key(code: int, experimental: bool) -> int:
+    return code | _EXPERIMENTAL_KEY if experimental else code
 
 
 _M = TypeVar("_M", bound=type[Message])
@@ -364,9 +371,11 @@ _M = TypeVar("_M", bound=type[Message])
 
 def register(cls: _M) -> _M:
     """Class decorator: make :func:`decode` produce ``cls`` for its (experimental, code)."""
-    key = (cls.experimental, cls.code)
+    key = _key(cls.code, cls.experimental)
     if key in _REGISTRY:
-        raise ValueError(f"{cls.__name__} and {_REGISTRY[key].__name__} share code 0x{cls.code:04X}")
+        raise ValueError(
+            f"{cls.__name__} and {_REGISTRY[key].__name__} share code 0x{cls.code:04X}"
+        )
     _REGISTRY[key] = cls
     return cls
 
@@ -378,7 +387,7 @@ def message_types() -> tuple[type[Message], ...]:
 
 def message_type(code: int, experimental: bool = False) -> type[Message] | None:
     """The record type for a command code, or None when it would decode as UnknownMessage."""
-    return _REGISTRY.get((experimental, code))
+    return _REGISTRY.get(_key(code, experimental))
 
 
 def encode(message: Message, header: Header | None = None) -> bytes:
@@ -412,7 +421,7 @@ def decode(data: bytes | bytearray | memoryview) -> Message:
     flags, which this codec rejects rather than reassembles (see docs/jaus.md).
     """
     header, code, experimental, size = decode_header(data)
-    if header.data_flag != DataFlag.SINGLE:
+    if header.data_flag != _SINGLE:
         raise JausDecodeError(
             f"multi-packet data flag {header.data_flag} ({DataFlag(header.data_flag).name}) "
             "is not supported; only single-packet messages are decoded"
@@ -421,8 +430,8 @@ def decode(data: bytes | bytearray | memoryview) -> Message:
         raise JausDecodeError(
             f"wrong length: header says {size} payload bytes, got {len(data) - HEADER_SIZE}"
         )
-    payload = bytes(data[HEADER_SIZE:])
-    cls = _REGISTRY.get((experimental, code))
+    payload = data[HEADER_SIZE:] if type(data) is bytes else bytes(data[HEADER_SIZE:])
+    cls = _REGISTRY.get(code | _EXPERIMENTAL_KEY if experimental else code)
     if cls is None:
         return UnknownMessage(code, payload, experimental, header)
     return cls.decode_payload(payload, header)
@@ -445,4 +454,3 @@ def to_dict(message: Message) -> dict[str, Any]:
         "sequence": header.sequence,
         "fields": message.fields_dict(),
     }
-

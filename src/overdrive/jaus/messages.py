@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Sequence
 from datetime import datetime
 from enum import IntEnum, IntFlag
 from typing import Any, ClassVar, Final, Self, TypeVar
@@ -39,6 +38,7 @@ from overdrive.jaus.codec import (
     ScaledInt,
     register,
 )
+from overdrive.jaus.layout import ENCODE_FAILURES, FixedLayout, PresenceLayout, ScaledWire, Wire
 
 # --------------------------------------------------------------------------- default headers
 
@@ -60,41 +60,19 @@ SERVICE_FROM_PRIMITIVE_DRIVER: Final = FROM_PRIMITIVE_DRIVER.replace(service_con
 
 # --------------------------------------------------------------------------- wire field types
 
-
-class _Wire:
-    """How one payload field goes on the wire: a struct format character and conversions.
-
-    ``to_raw``/``from_raw`` are None when the field is the raw integer itself.
-    """
-
-    __slots__ = ("fmt", "from_raw", "to_raw")
-
-    def __init__(self, fmt: str, to_raw: Any = None, from_raw: Any = None) -> None:
-        self.fmt = fmt
-        self.to_raw = to_raw
-        self.from_raw = from_raw
+U8: Final = Wire("B")
+U16: Final = Wire("H")
+U32: Final = Wire("I")
+I32: Final = Wire("i")
 
 
-_INT_RANGES: Final = {"B": (0, 0xFF), "H": (0, 0xFFFF), "I": (0, 0xFFFFFFFF), "i": (-(2**31), 2**31 - 1)}
+def _checked(wire: Wire, value: int) -> int:
+    """``value`` after checking it fits ``wire`` (for the hand-written payloads)."""
+    wire.check(value)
+    return value
 
 
-def _raw(fmt: str) -> _Wire:
-    """A plain integer field; the range check names the bounds instead of struct's message."""
-    low, high = _INT_RANGES[fmt]
-
-    def to_raw(value: int) -> int:
-        if not isinstance(value, int) or not low <= value <= high:
-            raise JausEncodeError(f"must be an integer {low}..{high}, got {value!r}")
-        return value
-
-    return _Wire(fmt, to_raw)
-
-
-def _scaled(scaled: ScaledInt) -> _Wire:
-    return _Wire(scaled.fmt, scaled.to_raw, scaled.from_raw)
-
-
-def _atan_scaled(scaled: ScaledInt) -> _Wire:
+def _atan_scaled(scaled: ScaledInt) -> Wire:
     """Curvature carried as atan(curvature) in a scaled integer (reference §6)."""
     half_pi = math.pi / 2
 
@@ -104,33 +82,28 @@ def _atan_scaled(scaled: ScaledInt) -> _Wire:
         return scaled.to_raw(math.atan(curvature_1pm))
 
     def from_raw(raw: int) -> float:
-        # clamp inside (-pi/2, pi/2) in float terms so tan keeps its sign at the ends
+        # from_raw already clamps to [-pi/2, pi/2]; the float pi/2 is just below the true
+        # value, so tan stays positive at the top end
         return math.tan(max(-half_pi, min(half_pi, scaled.from_raw(raw))))
 
-    return _Wire(scaled.fmt, to_raw, from_raw)
+    return Wire(scaled.fmt, to_raw, from_raw)
 
 
 _MS_PER_S: Final = 1000.0
 
 
-def _millis_u16() -> _Wire:
-    """A duration in seconds carried as raw milliseconds in a u16 (reference §6)."""
-
-    def to_raw(duration_s: float) -> int:
-        if not math.isfinite(duration_s):
-            raise JausEncodeError(f"cannot encode non-finite value {duration_s!r}")
-        millis = round(duration_s * _MS_PER_S)
-        if not 0 <= millis <= 0xFFFF:
-            raise JausEncodeError(f"must be 0..65.535 s, got {duration_s!r}")
-        return millis
-
-    return _Wire("H", to_raw, lambda raw: raw / _MS_PER_S)
+def _millis_to_raw(duration_s: float) -> int:
+    if not math.isfinite(duration_s):
+        raise JausEncodeError(f"cannot encode non-finite value {duration_s!r}")
+    millis = round(duration_s * _MS_PER_S)
+    if not 0 <= millis <= 0xFFFF:
+        raise JausEncodeError(f"must be 0..65.535 s, got {duration_s!r}")
+    return millis
 
 
-U8: Final = _raw("B")
-U16: Final = _raw("H")
-U32: Final = _raw("I")
-I32: Final = _raw("i")
+MILLIS_U16: Final = Wire("H", _millis_to_raw, lambda raw: raw / _MS_PER_S)
+"""A duration in seconds carried as raw milliseconds in a u16 (reference §6)."""
+
 
 # --------------------------------------------------------------------------- timestamp
 
@@ -157,39 +130,43 @@ class JausTimestamp(msgspec.Struct, frozen=True):
 
     def to_raw(self) -> int:
         """The packed u32; raises JausEncodeError when a part overflows its bits."""
-        ms, second, minute, hour, day = (
-            self.millisecond,
-            self.second,
-            self.minute,
-            self.hour,
-            self.day,
-        )
-        try:
-            # bit widths of reference §5: ms 10, s 6, min 6, h 5, day 5
-            if (
-                0 <= ms < 1 << 10
-                and 0 <= second < 1 << 6
-                and 0 <= minute < 1 << 6
-                and 0 <= hour < 1 << 5
-                and 0 <= day < 1 << 5
-            ):
-                return ms | second << 10 | minute << 16 | hour << 22 | day << 27
-        except TypeError:  # non-integers: floats fail the shifts, others the comparisons
-            pass
-        raise JausEncodeError(f"timestamp parts must be integers within their bits, got {self!r}")
+        return _timestamp_to_raw(self)
 
     @classmethod
     def from_raw(cls, raw: int) -> JausTimestamp:
-        return cls(raw >> 27, (raw >> 22) & 0x1F, (raw >> 16) & 0x3F, (raw >> 10) & 0x3F, raw & 0x3FF)
+        return cls(
+            raw >> 27, (raw >> 22) & 0x1F, (raw >> 16) & 0x3F, (raw >> 10) & 0x3F, raw & 0x3FF
+        )
 
 
 def _timestamp_to_raw(value: JausTimestamp) -> int:
-    if not isinstance(value, JausTimestamp):
+    if type(value) is not JausTimestamp:
         raise JausEncodeError(f"must be a JausTimestamp, got {type(value).__name__}")
-    return value.to_raw()
+    day, hour, minute, second, ms = msgspec.structs.astuple(value)
+    try:
+        # bit widths of reference §5: ms 10, s 6, min 6, h 5, day 5; a negative part
+        # shifted right stays non-zero, a float part fails the shift
+        if not (ms >> 10 | second >> 6 | minute >> 6 | hour >> 5 | day >> 5):
+            return ms | second << 10 | minute << 16 | hour << 22 | day << 27
+    except TypeError:
+        pass
+    raise JausEncodeError(f"timestamp parts must be integers within their bits, got {value!r}")
 
 
-TIMESTAMP: Final = _Wire("I", _timestamp_to_raw, JausTimestamp.from_raw)
+class _TimestampWire(Wire):
+    """The timestamp field, with its unpacking inlined into the generated decoders."""
+
+    __slots__ = ()
+
+    def decode_source(self, var: str, ns: dict[str, Any], tag: str) -> list[str]:
+        ns["JausTimestamp"] = JausTimestamp
+        return [
+            f"{var} = JausTimestamp({var} >> 27, {var} >> 22 & 0x1F, {var} >> 16 & 0x3F, "
+            f"{var} >> 10 & 0x3F, {var} & 0x3FF)"  # JausTimestamp.from_raw
+        ]
+
+
+TIMESTAMP: Final = _TimestampWire("I", _timestamp_to_raw, JausTimestamp.from_raw)
 
 # --------------------------------------------------------------------------- scaled field types
 
@@ -215,139 +192,33 @@ CURVATURE_RATE_1PMS: Final = ScaledInt("ushort", 0.0, 10.0)  # §6 Set Motion Pr
 WHEEL_SPEED_MPS: Final = ScaledInt("ushort", -65.535, 65.535)  # §6 Report Wheels Speed
 
 _CURVATURE: Final = _atan_scaled(CURVATURE_ANGLE_RAD)
-_DURATION: Final = _millis_u16()
 
 # --------------------------------------------------------------------------- layouts
-
-
-def _field_problem(fields: Sequence[tuple[str, _Wire]], values: Sequence[Any]) -> str:
-    """Name the first field that does not encode (slow path, after the fast one failed)."""
-    for (name, wire), value in zip(fields, values, strict=False):
-        if value is None or wire.to_raw is None:
-            continue
-        try:
-            wire.to_raw(value)
-        except JausEncodeError as exc:
-            return f"{name}: {exc}"
-        except TypeError:
-            return f"{name}: wrong type {type(value).__name__}"
-    return "a field does not fit its wire type"
-
-
-class _FixedLayout:
-    """A payload of fixed fields in record order."""
-
-    __slots__ = ("fields", "from_raws", "struct", "to_raws")
-
-    def __init__(self, fields: Sequence[tuple[str, _Wire]]) -> None:
-        self.fields = tuple(fields)
-        self.struct = struct.Struct("<" + "".join(wire.fmt for _, wire in fields))
-        self.to_raws = tuple(wire.to_raw for _, wire in fields)
-        self.from_raws = tuple(wire.from_raw for _, wire in fields)
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return tuple(name for name, _ in self.fields)
-
-    def encode(self, values: Sequence[Any]) -> bytes:
-        """Pack ``values`` (extra trailing values, such as the header, are ignored)."""
-        try:
-            return self.struct.pack(
-                *[
-                    value if to_raw is None else to_raw(value)
-                    for to_raw, value in zip(self.to_raws, values, strict=False)
-                ]
-            )
-        except (JausEncodeError, TypeError, struct.error):
-            raise JausEncodeError(_field_problem(self.fields, values)) from None
-
-    def decode(self, payload: bytes, what: str) -> list[Any]:
-        if len(payload) != self.struct.size:
-            raise JausDecodeError(
-                f"{what}: payload is {len(payload)} bytes, expected {self.struct.size}"
-            )
-        return [
-            raw if from_raw is None else from_raw(raw)
-            for from_raw, raw in zip(self.from_raws, self.struct.unpack(payload), strict=True)
-        ]
-
-
-class _PresenceLayout:
-    """A presence vector (u8 or u16) then the present fields in bit order (bit i = field i)."""
-
-    __slots__ = ("bits", "cache", "fields", "pv_fmt", "pv_size", "to_raws", "valid_bits")
-
-    def __init__(self, pv_fmt: str, fields: Sequence[tuple[str, _Wire]]) -> None:
-        self.pv_fmt = pv_fmt
-        self.pv_size = struct.calcsize(pv_fmt)
-        self.fields = tuple(fields)
-        self.bits = tuple(1 << i for i in range(len(fields)))
-        self.to_raws = tuple(wire.to_raw for _, wire in fields)
-        self.valid_bits = (1 << len(fields)) - 1
-        self.cache: dict[int, tuple[struct.Struct, tuple[tuple[int, Any], ...]]] = {}
-
-    def _compiled(self, pv: int) -> tuple[struct.Struct, tuple[tuple[int, Any], ...]]:
-        entry = self.cache.get(pv)
-        if entry is None:
-            present = [i for i in range(len(self.fields)) if pv >> i & 1]
-            fmt = "<" + self.pv_fmt + "".join(self.fields[i][1].fmt for i in present)
-            entry = (struct.Struct(fmt), tuple((i, self.fields[i][1].from_raw) for i in present))
-            self.cache[pv] = entry  # bounded: at most 2**len(fields) entries
-        return entry
-
-    def encode(self, values: Sequence[Any]) -> bytes:
-        """Pack the non-None ``values`` behind the presence vector they imply."""
-        pv = 0
-        raws = []
-        try:
-            for bit, to_raw, value in zip(self.bits, self.to_raws, values, strict=False):
-                if value is not None:
-                    pv |= bit
-                    raws.append(value if to_raw is None else to_raw(value))
-            return self._compiled(pv)[0].pack(pv, *raws)
-        except (JausEncodeError, TypeError, struct.error):
-            raise JausEncodeError(_field_problem(self.fields, values)) from None
-
-    def decode(self, payload: bytes, what: str) -> list[Any]:
-        if len(payload) < self.pv_size:
-            raise JausDecodeError(f"{what}: payload of {len(payload)} bytes has no presence vector")
-        pv = payload[0] if self.pv_size == 1 else payload[0] | payload[1] << 8
-        if pv & ~self.valid_bits:
-            raise JausDecodeError(
-                f"{what}: presence vector 0x{pv:X} sets undefined bits "
-                f"(defined: 0x{self.valid_bits:X})"
-            )
-        layout, slots = self._compiled(pv)
-        if len(payload) != layout.size:
-            raise JausDecodeError(
-                f"{what}: payload is {len(payload)} bytes, presence vector 0x{pv:X} "
-                f"needs {layout.size}"
-            )
-        values: list[Any] = [None] * len(self.fields)
-        for (index, from_raw), raw in zip(slots, layout.unpack(payload)[1:], strict=True):
-            values[index] = raw if from_raw is None else from_raw(raw)
-        return values
 
 
 class _LayoutMessage(Message, frozen=True):
     """A record whose payload is its fields, in declaration order, per ``layout``."""
 
-    layout: ClassVar[_FixedLayout | _PresenceLayout]
+    layout: ClassVar[FixedLayout | PresenceLayout]
 
     def encode_payload(self) -> bytes:
-        return self.layout.encode(msgspec.structs.astuple(self))
+        values = msgspec.structs.astuple(self)
+        try:
+            return self.layout.encode_values(values)
+        except ENCODE_FAILURES:
+            raise JausEncodeError(self.layout.problem(values)) from None
 
     @classmethod
     def decode_payload(cls, payload: bytes, header: Header) -> Self:
         return cls(*cls.layout.decode(payload, cls.name), header)
 
 
-def _fixed(*fields: tuple[str, _Wire]) -> _FixedLayout:
-    return _FixedLayout(fields)
+def _fixed(*fields: tuple[str, Wire]) -> FixedLayout:
+    return FixedLayout(fields)
 
 
-def _presence(pv_fmt: str, *fields: tuple[str, _Wire]) -> _PresenceLayout:
-    return _PresenceLayout(pv_fmt, fields)
+def _presence(pv_fmt: str, *fields: tuple[str, Wire]) -> PresenceLayout:
+    return PresenceLayout(pv_fmt, fields)
 
 
 _EMPTY: Final = _fixed()
@@ -361,14 +232,10 @@ def _message(cls: _M) -> _M:
     if fields[-1] != "header":
         raise TypeError(f"{cls.__name__}: the last field must be 'header'")
     layout = getattr(cls, "layout", None)
-    if isinstance(layout, _FixedLayout):
-        names = layout.names
-    elif isinstance(layout, _PresenceLayout):
-        names = tuple(name for name, _ in layout.fields)
-    else:
-        names = None
-    if names is not None and names != fields[:-1]:
-        raise TypeError(f"{cls.__name__}: layout {names} does not match fields {fields[:-1]}")
+    if layout is not None and layout.names != fields[:-1]:
+        raise TypeError(
+            f"{cls.__name__}: layout {layout.names} does not match fields {fields[:-1]}"
+        )
     return register(cls)
 
 
@@ -467,7 +334,7 @@ class CreateServiceConnection(_LayoutMessage, frozen=True):
     code = 0x0008
     name = "create-service-connection"
     layout = _fixed(
-        ("command_code", U16), ("rate_hz", _scaled(RATE_HZ)), ("presence_vector", U32)
+        ("command_code", U16), ("rate_hz", ScaledWire(RATE_HZ)), ("presence_vector", U32)
     )
     command_code: int
     rate_hz: float
@@ -484,7 +351,7 @@ class ConfirmServiceConnection(_LayoutMessage, frozen=True):
     layout = _fixed(
         ("command_code", U16),
         ("instance_id", U8),
-        ("rate_hz", _scaled(RATE_HZ)),
+        ("rate_hz", ScaledWire(RATE_HZ)),
         ("response", U8),
     )
     command_code: int
@@ -656,7 +523,9 @@ class QueryComponentControl(_LayoutMessage, frozen=True):
     header: Header = TO_PRIMITIVE_DRIVER
 
 
-_CONTROLLER: Final = struct.Struct("<BBBBB")  # reference §4: subsystem, node, component, instance, authority
+_CONTROLLER: Final = struct.Struct(
+    "<BBBBB"
+)  # reference §4: subsystem, node, component, instance, authority
 
 
 @_message
@@ -674,7 +543,7 @@ class ReportComponentControl(Message, frozen=True):
         if not isinstance(c, JausId):
             raise JausEncodeError(f"controller must be a JausId, got {type(c).__name__}")
         return _CONTROLLER.pack(
-            c.subsystem, c.node, c.component, c.instance, U8.to_raw(self.authority)
+            c.subsystem, c.node, c.component, c.instance, _checked(U8, self.authority)
         )
 
     @classmethod
@@ -710,18 +579,18 @@ class ReportHeartbeatPulse(_LayoutMessage, frozen=True):
 # =========================================================================== §5 platform messages
 
 _WRENCH_FIELDS: Final = (
-    ("propulsive_linear_x_pct", _scaled(PCT_PROPULSIVE)),
-    ("propulsive_linear_y_pct", _scaled(PCT_PROPULSIVE)),
-    ("propulsive_linear_z_pct", _scaled(PCT_PROPULSIVE)),
-    ("propulsive_rotational_x_pct", _scaled(PCT_PROPULSIVE)),
-    ("propulsive_rotational_y_pct", _scaled(PCT_PROPULSIVE)),
-    ("propulsive_rotational_z_pct", _scaled(PCT_PROPULSIVE)),
-    ("resistive_linear_x_pct", _scaled(PCT_RESISTIVE)),
-    ("resistive_linear_y_pct", _scaled(PCT_RESISTIVE)),
-    ("resistive_linear_z_pct", _scaled(PCT_RESISTIVE)),
-    ("resistive_rotational_x_pct", _scaled(PCT_RESISTIVE)),
-    ("resistive_rotational_y_pct", _scaled(PCT_RESISTIVE)),
-    ("resistive_rotational_z_pct", _scaled(PCT_RESISTIVE)),
+    ("propulsive_linear_x_pct", ScaledWire(PCT_PROPULSIVE)),
+    ("propulsive_linear_y_pct", ScaledWire(PCT_PROPULSIVE)),
+    ("propulsive_linear_z_pct", ScaledWire(PCT_PROPULSIVE)),
+    ("propulsive_rotational_x_pct", ScaledWire(PCT_PROPULSIVE)),
+    ("propulsive_rotational_y_pct", ScaledWire(PCT_PROPULSIVE)),
+    ("propulsive_rotational_z_pct", ScaledWire(PCT_PROPULSIVE)),
+    ("resistive_linear_x_pct", ScaledWire(PCT_RESISTIVE)),
+    ("resistive_linear_y_pct", ScaledWire(PCT_RESISTIVE)),
+    ("resistive_linear_z_pct", ScaledWire(PCT_RESISTIVE)),
+    ("resistive_rotational_x_pct", ScaledWire(PCT_RESISTIVE)),
+    ("resistive_rotational_y_pct", ScaledWire(PCT_RESISTIVE)),
+    ("resistive_rotational_z_pct", ScaledWire(PCT_RESISTIVE)),
 )
 
 WRENCH_ALL: Final = 0x0FFF  # reference §5: bits 0-11
@@ -900,14 +769,14 @@ class ReportVelocityState(_LayoutMessage, frozen=True):
     name = "report-velocity-state"
     layout = _presence(
         "H",
-        ("velocity_x_mps", _scaled(VELOCITY_MPS)),
-        ("velocity_y_mps", _scaled(VELOCITY_MPS)),
-        ("velocity_z_mps", _scaled(VELOCITY_MPS)),
-        ("velocity_rms_mps", _scaled(VELOCITY_RMS_MPS)),
-        ("roll_rate_radps", _scaled(RATE_RADPS)),
-        ("pitch_rate_radps", _scaled(RATE_RADPS)),
-        ("yaw_rate_radps", _scaled(RATE_RADPS)),
-        ("rate_rms_radps", _scaled(RATE_RMS_RADPS)),
+        ("velocity_x_mps", ScaledWire(VELOCITY_MPS)),
+        ("velocity_y_mps", ScaledWire(VELOCITY_MPS)),
+        ("velocity_z_mps", ScaledWire(VELOCITY_MPS)),
+        ("velocity_rms_mps", ScaledWire(VELOCITY_RMS_MPS)),
+        ("roll_rate_radps", ScaledWire(RATE_RADPS)),
+        ("pitch_rate_radps", ScaledWire(RATE_RADPS)),
+        ("yaw_rate_radps", ScaledWire(RATE_RADPS)),
+        ("rate_rms_radps", ScaledWire(RATE_RMS_RADPS)),
         ("timestamp", TIMESTAMP),
     )
     velocity_x_mps: float | None = None
@@ -934,11 +803,11 @@ class QueryVelocityState(_LayoutMessage, frozen=True):
 
 
 _ATTITUDE_FIELDS: Final = (
-    ("position_rms_m", _scaled(POSITION_RMS_M)),
-    ("roll_rad", _scaled(ATTITUDE_RAD)),
-    ("pitch_rad", _scaled(ATTITUDE_RAD)),
-    ("yaw_rad", _scaled(ATTITUDE_RAD)),
-    ("attitude_rms_rad", _scaled(ATTITUDE_RMS_RAD)),
+    ("position_rms_m", ScaledWire(POSITION_RMS_M)),
+    ("roll_rad", ScaledWire(ATTITUDE_RAD)),
+    ("pitch_rad", ScaledWire(ATTITUDE_RAD)),
+    ("yaw_rad", ScaledWire(ATTITUDE_RAD)),
+    ("attitude_rms_rad", ScaledWire(ATTITUDE_RMS_RAD)),
     ("timestamp", TIMESTAMP),
 )
 
@@ -951,9 +820,9 @@ class ReportGlobalPose(_LayoutMessage, frozen=True):
     name = "report-global-pose"
     layout = _presence(
         "H",
-        ("latitude_deg", _scaled(LATITUDE_DEG)),
-        ("longitude_deg", _scaled(LONGITUDE_DEG)),
-        ("elevation_m", _scaled(ELEVATION_M)),
+        ("latitude_deg", ScaledWire(LATITUDE_DEG)),
+        ("longitude_deg", ScaledWire(LONGITUDE_DEG)),
+        ("elevation_m", ScaledWire(ELEVATION_M)),
         *_ATTITUDE_FIELDS,
     )
     latitude_deg: float | None = None
@@ -987,9 +856,9 @@ class ReportLocalPose(_LayoutMessage, frozen=True):
     name = "report-local-pose"
     layout = _presence(
         "H",
-        ("x_m", _scaled(LOCAL_XY_M)),
-        ("y_m", _scaled(LOCAL_XY_M)),
-        ("z_m", _scaled(ELEVATION_M)),
+        ("x_m", ScaledWire(LOCAL_XY_M)),
+        ("y_m", ScaledWire(LOCAL_XY_M)),
+        ("z_m", ScaledWire(ELEVATION_M)),
         *_ATTITUDE_FIELDS,
     )
     x_m: float | None = None
@@ -1030,13 +899,13 @@ class Motion(msgspec.Struct, frozen=True):
     duration_s: float = MOTION_DURATION_S
 
 
-_MOTION: Final = _FixedLayout(
+MOTION_LAYOUT: Final = FixedLayout(
     (
-        ("speed_mps", _scaled(PROFILE_SPEED_MPS)),
-        ("max_accel_mps2", _scaled(PROFILE_ACCEL_MPS2)),
+        ("speed_mps", ScaledWire(PROFILE_SPEED_MPS)),
+        ("max_accel_mps2", ScaledWire(PROFILE_ACCEL_MPS2)),
         ("curvature_1pm", _CURVATURE),
-        ("curvature_rate_1pms", _scaled(CURVATURE_RATE_1PMS)),
-        ("duration_s", _DURATION),
+        ("curvature_rate_1pms", ScaledWire(CURVATURE_RATE_1PMS)),
+        ("duration_s", MILLIS_U16),
     )
 )
 _VERSION_COUNT: Final = struct.Struct("<BB")
@@ -1075,11 +944,11 @@ class SetMotionProfile(Message, frozen=True):
         motions = self.motions
         if not isinstance(motions, tuple | list) or len(motions) > 0xFF:
             raise JausEncodeError("motions must be a tuple of at most 255 Motion records")
-        parts = [_VERSION_COUNT.pack(U8.to_raw(self.version), len(motions))]
+        parts = [_VERSION_COUNT.pack(_checked(U8, self.version), len(motions))]
         for motion in motions:
             if not isinstance(motion, Motion):
                 raise JausEncodeError(f"motions must hold Motion records, got {motion!r}")
-            parts.append(_MOTION.encode(msgspec.structs.astuple(motion)))
+            parts.append(MOTION_LAYOUT.encode(msgspec.structs.astuple(motion)))
         return b"".join(parts)
 
     @classmethod
@@ -1087,14 +956,14 @@ class SetMotionProfile(Message, frozen=True):
         if len(payload) < _VERSION_COUNT.size:
             raise JausDecodeError(f"{cls.name}: payload of {len(payload)} bytes is truncated")
         version, count = _VERSION_COUNT.unpack_from(payload)
-        size = _MOTION.struct.size
+        size = MOTION_LAYOUT.size
         expected = _VERSION_COUNT.size + count * size
         if len(payload) != expected:
             raise JausDecodeError(
                 f"{cls.name}: payload is {len(payload)} bytes, {count} motions need {expected}"
             )
         motions = tuple(
-            Motion(*_MOTION.decode(payload[start : start + size], cls.name))
+            Motion(*MOTION_LAYOUT.decode(payload[start : start + size], cls.name))
             for start in range(_VERSION_COUNT.size, expected, size)
         )
         return cls(motions, version, header)
@@ -1221,10 +1090,10 @@ class ReportWheelsSpeed(_LayoutMessage, frozen=True):
     name = "report-wheels-speed"
     layout = _fixed(
         ("version", U8),
-        ("right_front_mps", _scaled(WHEEL_SPEED_MPS)),
-        ("left_front_mps", _scaled(WHEEL_SPEED_MPS)),
-        ("right_rear_mps", _scaled(WHEEL_SPEED_MPS)),
-        ("left_rear_mps", _scaled(WHEEL_SPEED_MPS)),
+        ("right_front_mps", ScaledWire(WHEEL_SPEED_MPS)),
+        ("left_front_mps", ScaledWire(WHEEL_SPEED_MPS)),
+        ("right_rear_mps", ScaledWire(WHEEL_SPEED_MPS)),
+        ("left_rear_mps", ScaledWire(WHEEL_SPEED_MPS)),
         ("timestamp", TIMESTAMP),
     )
     version: int = 0
@@ -1280,14 +1149,14 @@ class _Signals(Message, frozen=True):
         body = b""
         if self.turn_signal is not None:
             presence |= 1
-            body += bytes((U8.to_raw(self.turn_signal),))
+            body += bytes((_checked(U8, self.turn_signal),))
         for bit, group, kind in ((1, self.horn, Horn), (2, self.lights, Lights)):
             if group is not None:
                 if not isinstance(group, kind):
                     raise JausEncodeError(f"expected {kind.__name__}, got {group!r}")
                 presence |= 1 << bit
-                body += _TRIPLE.pack(*(U8.to_raw(v) for v in msgspec.structs.astuple(group)))
-        return _SIGNALS_HEAD.pack(U8.to_raw(self.version), presence) + body
+                body += _TRIPLE.pack(*(_checked(U8, v) for v in msgspec.structs.astuple(group)))
+        return _SIGNALS_HEAD.pack(_checked(U8, self.version), presence) + body
 
     @classmethod
     def decode_payload(cls, payload: bytes, header: Header) -> Self:
@@ -1359,8 +1228,10 @@ class ReportErrorCount(Message, frozen=True):
         counts = self.counts
         if not isinstance(counts, tuple | list) or len(counts) > 0xFF:
             raise JausEncodeError("counts must be a tuple of at most 255 integers")
-        head = _ERROR_HEAD.pack(U8.to_raw(self.version), U8.to_raw(self.reserved), len(counts))
-        return head + struct.pack(f"<{len(counts)}i", *(I32.to_raw(c) for c in counts))
+        head = _ERROR_HEAD.pack(
+            _checked(U8, self.version), _checked(U8, self.reserved), len(counts)
+        )
+        return head + struct.pack(f"<{len(counts)}i", *(_checked(I32, c) for c in counts))
 
     @classmethod
     def decode_payload(cls, payload: bytes, header: Header) -> Self:
