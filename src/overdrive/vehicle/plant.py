@@ -7,8 +7,8 @@ Model (SI units, x forward along the heading):
 
 - Drive force ``F_d = throttle * min(F_gear, P_max / max(|v|, 0.5 m/s))``, tapering to zero over
   the last 10 % below the gear's top speed (redline); none while shifting or with the engine off.
-- Brake force ``F_b = brake * m * a_brake_max``, opposing motion; locked brakes (park pawl or
-  parking brake) hold with ``m * a_brake_max``.
+- Brake force ``F_b = brake * m * a_brake_max``, opposing motion; the park pawl or parking
+  brake holds a stopped vehicle with ``m * a_brake_max`` but does not brake a moving one.
 - Rolling resistance ``C_rr * m * g * cos(pitch)``; drag ``0.5 * rho * CdA * v * |v|``;
   grade ``-m * g * sin(pitch)``.
 - Friction circle: tyre force ``sqrt(F_x^2 + F_y^2) <= mu * m * g * cos(pitch)`` (drive force
@@ -226,8 +226,9 @@ class Plant:
                 drive_n = math.copysign(driven_cap_n, drive_n)
 
         brake_n = self.brake * faults.brake_effectiveness * m * p.max_brake_decel_mps2
-        locked = gear.holds or park_brake
-        if locked:
+        if (gear.holds or park_brake) and abs(v) < STOPPED_MPS:
+            # park pawl / parking brake: holds a stopped vehicle; at speed only the service
+            # brake (with its lag and faults) decelerates
             brake_n = max(brake_n, m * p.max_brake_decel_mps2)
         abs_active = False
         if brake_n > long_cap_n:
