@@ -60,7 +60,8 @@ def test_authorization_overrun_detected(monitor: Monitor) -> None:
 def test_short_authorization_judged_from_shortest_possible_stop(monitor: Monitor) -> None:
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0))
     monitor.observe(Topic.ADVANCE, AdvanceAuthorization(source="move", distance_m=0.0))
-    shortest = 10.0**2 / (2 * min(ESCAPE_HYBRID.max_brake_decel_mps2, 0.8 * 9.80665))
+    reaction = 2 * DT + ESCAPE_HYBRID.brake_lag_s
+    shortest = 10.0 * reaction + 10.0**2 / (2 * min(ESCAPE_HYBRID.max_brake_decel_mps2, 0.8 * 9.80665))
     drive(monitor, [shortest - 0.01], speed=10.0)
     assert monitor.finish() == []
     drive(monitor, [shortest + 0.01], speed=10.0)

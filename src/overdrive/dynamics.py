@@ -76,8 +76,8 @@ def ellipse_for(params: VehicleParams, friction: float,
                    lat_mps2=params.skidpad_lat_g * G_MPS2 * scale)
 
 
-def _axes(e: Ellipse, grade_rad: float, roll_rad: float) -> tuple[float, float]:
-    """Semi-axes on a slope: the friction limit follows the normal load."""
+def load_axes_mps2(e: Ellipse, grade_rad: float = 0.0, roll_rad: float = 0.0) -> tuple[float, float]:
+    """Semi-axes ``(A', B')`` on a slope: the friction limit follows the normal load."""
     n = math.cos(grade_rad) * math.cos(roll_rad)
     return e.lon_mps2 * n, e.lat_mps2 * n
 
@@ -95,7 +95,7 @@ def longitudinal_limits(e: Ellipse, speed_mps: float, curvature_1pm: float,
     ``accel = a_t - g sin(grade)``, ``decel = a_t + g sin(grade)``; ``A', B'`` are the
     load-scaled semi-axes.
     """
-    a, b = _axes(e, grade_rad, roll_rad)
+    a, b = load_axes_mps2(e, grade_rad, roll_rad)
     demand = lateral_demand_mps2(speed_mps, curvature_1pm, roll_rad)
     tyre = tyre_longitudinal_mps2(a, b, demand)
     g_along = G_MPS2 * math.sin(grade_rad)
@@ -114,7 +114,7 @@ def tyre_longitudinal_mps2(lon_axis_mps2: float, lat_axis_mps2: float,
 def lateral_available_mps2(e: Ellipse, lon_demand_mps2: float, grade_rad: float = 0.0,
                            roll_rad: float = 0.0) -> float:
     """``B' sqrt(1 - (f_x / A')^2)``: lateral tyre force left while supplying ``f_x``."""
-    a, b = _axes(e, grade_rad, roll_rad)
+    a, b = load_axes_mps2(e, grade_rad, roll_rad)
     if a <= 0.0:
         return 0.0
     r = lon_demand_mps2 / a
@@ -135,7 +135,7 @@ def lateral_speed_limit_mps(e: Ellipse, curvature_1pm: float, grade_rad: float =
         return math.inf if abs(c) <= b_hold else 0.0
     if abs(c) > b_hold:
         return 0.0
-    room = b_hold + math.copysign(c, curvature_1pm)
+    room = b_hold + (c if curvature_1pm > 0.0 else -c)
     return math.sqrt(max(room, 0.0) / abs(curvature_1pm))
 
 
@@ -145,6 +145,8 @@ def _ratio_series(x: float, hyperbolic: bool) -> float:
     """``atanh(x)/x`` (hyperbolic) or ``atan(x)/x``, stable near 0."""
     if abs(x) < _SERIES_X:
         return 1.0 + x * x / 3.0 if hyperbolic else 1.0 - x * x / 3.0
+    if hyperbolic and abs(x) >= 1.0:
+        return math.inf   # the integrand's pole (braking runs out), reached by rounding
     return (math.atanh(x) if hyperbolic else math.atan(x)) / x
 
 
@@ -184,7 +186,7 @@ def braking_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0,
     v = abs(speed_mps)
     if v == 0.0:
         return 0.0
-    a, b = _axes(e, grade_rad, roll_rad)
+    a, b = load_axes_mps2(e, grade_rad, roll_rad)
     g_along = G_MPS2 * math.sin(grade_rad)
     if a <= 0.0 or b <= 0.0 or a + g_along <= 0.0:
         return math.inf
@@ -193,7 +195,8 @@ def braking_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0,
     s1 = (v * v * curvature_1pm - c) / b
     bound = _lateral_bound(a, g_along)
     worst = max(abs(s0), abs(s1))
-    if worst > bound or (g_along < 0.0 and worst >= bound):
+    if worst > bound or (g_along < 0.0 and (
+            worst >= bound or a * math.sqrt(1.0 - worst * worst) + g_along <= 0.0)):
         return math.inf
     if abs(s1 - s0) < _TINY_SPAN:
         s_mid = 0.5 * (s0 + s1)
@@ -214,7 +217,7 @@ def stopping_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0
 def braking_speed_cap_mps(e: Ellipse, curvature_1pm: float, grade_rad: float = 0.0,
                           roll_rad: float = 0.0) -> float:
     """Speed above which ``braking_distance_m`` is infinite (curve leaves the braking ellipse)."""
-    a, b = _axes(e, grade_rad, roll_rad)
+    a, b = load_axes_mps2(e, grade_rad, roll_rad)
     g_along = G_MPS2 * math.sin(grade_rad)
     if a <= 0.0 or b <= 0.0 or a + g_along <= 0.0:
         return 0.0
@@ -224,7 +227,7 @@ def braking_speed_cap_mps(e: Ellipse, curvature_1pm: float, grade_rad: float = 0
         return 0.0
     if curvature_1pm == 0.0:
         return math.inf
-    room = bound * b + math.copysign(c, curvature_1pm)
+    room = bound * b + (c if curvature_1pm > 0.0 else -c)
     return math.sqrt(max(room, 0.0) / abs(curvature_1pm))
 
 
@@ -234,12 +237,12 @@ def max_safe_speed_mps(e: Ellipse, distance_m: float, curvature_1pm: float = 0.0
     """Inverse of ``stopping_distance_m``: the highest speed that stops within ``distance_m``.
 
     Straight: ``v = -b t_r + sqrt((b t_r)^2 + 2 b D)``. In a curve: safeguarded Newton on
-    ``v t_r + d(v) = D`` (``d'(v) = v / b(v)``) to 1e-10 m, capped at
+    ``v t_r + d(v) = D`` (``d'(v) = v / b(v)``) to 1e-12 relative, capped at
     ``braking_speed_cap_mps``. 0 for ``D <= 0``, NaN, or when braking is impossible.
     """
     if not distance_m > 0.0:
         return 0.0
-    a, b = _axes(e, grade_rad, roll_rad)
+    a, b = load_axes_mps2(e, grade_rad, roll_rad)
     g_along = G_MPS2 * math.sin(grade_rad)
     cap = braking_speed_cap_mps(e, curvature_1pm, grade_rad, roll_rad)
     if cap <= 0.0:
@@ -266,7 +269,7 @@ def max_safe_speed_mps(e: Ellipse, distance_m: float, curvature_1pm: float = 0.0
     hi = min(cap, -best * t_r + math.sqrt((best * t_r) ** 2 + 2.0 * best * distance_m))
     lo = 0.0
     v = hi
-    tol_m = 1e-10 * max(distance_m, 1.0)
+    tol_m = 1e-12 * distance_m + 1e-15
     for _ in range(200):
         f = excess(v)
         if abs(f) <= tol_m:

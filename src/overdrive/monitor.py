@@ -4,8 +4,9 @@ It is a bus tap: it watches what the stack publishes and the simulator's ground 
 its own bookkeeping (it never asks the code under test), and lists each violated invariant:
 
 1. **authorization**: the vehicle never passes the end of an authorization to advance. An
-   authorization shorter than the distance the vehicle physically needs to stop (at the
-   tyre/brake limit) when it arrives is judged from that shortest possible stop instead.
+   authorization shorter than the distance the vehicle physically needs to stop when it
+   arrives (command latency and brake lag, then the brake/tyre limit with gravity along the
+   slope) is judged from that shortest possible stop instead.
 2. **throttle while braking**: no pedal command has throttle and brake both above zero.
 3. **watchdog**: once an SPSS client exists, a gap of more than 200 ms is followed by an
    emergency stop (full brake, zero throttle from the speed server) within one control period.
@@ -34,6 +35,8 @@ AUTHORIZATION_TOLERANCE_M = 0.0  # issue 4: "0 m overrun"
 ELLIPSE_TOLERANCE = 0.15      # plant tolerance: actuator lags and tyre-model transients
 ESTOP_DISABLE_BRAKE_S = 0.5   # brake actuator reaches full effort within ~5 time constants
 EPS_S = 1e-6
+MOVING_MPS = 0.05             # a stop is recorded when the speed falls from above this ...
+STOPPED_MPS = 0.001           # ... to below this
 
 
 class Monitor:
@@ -51,6 +54,7 @@ class Monitor:
         self.position_m = 0.0            # signed path position: forward +, reverse -
         self._last_odometer: float | None = None
         self.speed_mps = 0.0
+        self.pitch_rad = 0.0
         self.auth_ends: dict[str, tuple[float, bool]] = {}   # source -> (end position, reverse)
         self.last_spss_s: float | None = None
         self.estop_at_s: float | None = None   # first emergency stop since the last SPSS
@@ -58,6 +62,8 @@ class Monitor:
         self.rejected_expected = 0
         self.rejected_seen = 0
         self.estop_disable_since: float | None = None
+        self.stop_margins_m: list[float] = []   # authorization left each time the vehicle stopped
+        self.moving = False
 
     # ------------------------------------------------------------------ helpers
 
@@ -68,7 +74,10 @@ class Monitor:
             self.violations.append(f"{key}: {message} (t={self.now_s:.2f} s)")
 
     def _physical_decel_mps2(self) -> float:
-        return min(self.params.max_brake_decel_mps2, self.friction * G_MPS2)
+        """Hardest possible braking now: brakes or tyres, with gravity along the slope."""
+        pitch = self.pitch_rad if self.speed_mps >= 0.0 else -self.pitch_rad
+        tyre = min(self.params.max_brake_decel_mps2, self.friction * G_MPS2 * math.cos(pitch))
+        return max(tyre + G_MPS2 * math.sin(pitch), 0.1)
 
     # ------------------------------------------------------------------ bus tap
 
@@ -109,7 +118,8 @@ class Monitor:
         if not (math.isfinite(msg.distance_m) and msg.distance_m >= 0.0):
             return  # invalid input: the driving module must reject it; nothing to hold it to
         speed = abs(self.speed_mps)
-        shortest_stop_m = speed * speed / (2.0 * self._physical_decel_mps2())
+        reaction_s = 2.0 * self.period_s + self.params.brake_lag_s   # command latency + brake lag
+        shortest_stop_m = speed * reaction_s + speed * speed / (2.0 * self._physical_decel_mps2())
         length = max(msg.distance_m, shortest_stop_m)
         end = self.position_m - length if msg.reverse else self.position_m + length
         self.auth_ends[msg.source] = (end, msg.reverse)
@@ -120,6 +130,14 @@ class Monitor:
             self.position_m += step if truth.speed_mps >= 0.0 else -step
         self._last_odometer = truth.odometer_m
         self.speed_mps = truth.speed_mps
+        self.pitch_rad = truth.pitch_rad
+        if abs(truth.speed_mps) > MOVING_MPS:
+            self.moving = True
+        elif self.moving and abs(truth.speed_mps) < STOPPED_MPS:
+            self.moving = False
+            margin = self.authorization_margin_m()
+            if margin is not None:
+                self.stop_margins_m.append(margin)
         for source, (end, reverse) in self.auth_ends.items():
             overrun = (end - self.position_m) if reverse else (self.position_m - end)
             if overrun > AUTHORIZATION_TOLERANCE_M + 1e-9:
@@ -167,6 +185,13 @@ class Monitor:
                 self._violate("watchdog",
                               f"no SPSS for {gap * 1000:.0f} ms and no emergency stop by "
                               f"{(WATCHDOG_S + self.period_s) * 1000:.0f} ms")
+
+    def authorization_margin_m(self) -> float | None:
+        """Distance still authorized ahead of the vehicle by the most restrictive source, now."""
+        if not self.auth_ends:
+            return None
+        return min((self.position_m - end) if reverse else (end - self.position_m)
+                   for end, reverse in self.auth_ends.values())
 
     def finish(self) -> list[str]:
         if self.rejected_seen < self.rejected_expected:

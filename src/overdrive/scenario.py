@@ -228,6 +228,20 @@ class ExpectSpec(Spec, frozen=True):
         return next(f for f in self.__struct_fields__ if getattr(self, f) is not None)
 
 
+FrictionRange = tuple[Friction, Friction]
+GradeRange = tuple[Grade, Grade]
+
+
+class SweepSpec(Spec, frozen=True):
+    """Sampling ranges for ``overdrive sweep`` (uniform); ``null`` keeps the file's value."""
+
+    friction: FrictionRange | None = (0.5, 1.0)
+    grade_percent: GradeRange | None = (-5.0, 5.0)
+    obstacle_jitter_m: Annotated[float, msgspec.Meta(ge=0.0, le=1000.0)] = 3.0
+    event_jitter_s: Annotated[float, msgspec.Meta(ge=0.0, le=3600.0)] = 0.5
+    drop_expectations: bool = False
+
+
 class ScenarioFile(Spec, frozen=True):
     name: Name
     description: str = ""
@@ -240,6 +254,7 @@ class ScenarioFile(Spec, frozen=True):
     world: WorldSpec = WorldSpec()
     events: list[EventSpec] = []
     expect: list[ExpectSpec] = []
+    sweep: SweepSpec = SweepSpec()
 
 
 class Scenario(msgspec.Struct, frozen=True):

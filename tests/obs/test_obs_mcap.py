@@ -32,6 +32,11 @@ from overdrive.scenario import load_scenario, parse_scenario
 from overdrive.sim import run_scenario
 
 
+def demo_ticks() -> int:
+    """Ticks of the demo run: one per 10 ms period, both ends included."""
+    return round(load_scenario(DEMO).spec.duration_s / 0.01) + 1
+
+
 @pytest.fixture(scope="module")
 def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("demo")
@@ -90,7 +95,7 @@ def test_demo_mcap_channels_have_schemas_and_messages_decode(demo_run: Path) -> 
                       for c, n in summary.statistics.channel_message_counts.items()}
     with open(demo_run / "trace.csv", encoding="utf-8") as f:
         rows = sum(1 for _ in csv.DictReader(f))
-    assert counts[Topic.TRUTH] == rows == round(30 / 0.01) + 1
+    assert counts[Topic.TRUTH] == rows == demo_ticks()
     assert counts[POSE_TOPIC] == counts[TF_TOPIC] == rows
     assert counts[PUBLISHERS_TOPIC] == rows, "one publisher index per tick"
     assert counts[Topic.VEHICLE_STATUS] == rows
@@ -128,10 +133,12 @@ def test_publisher_index_attributes_every_message(demo_run: Path) -> None:
         assert tick.attributed
         publishers = [m.publisher for m in tick.messages]
         assert publishers[:6] == ["vehicle"] * 6, "the vehicle is stepped first"
-        assert set(publishers) <= {"vehicle", "scenario"}, "the demo is open loop"
-        assert all(m.publisher == "scenario" for m in tick.messages
-                   if m.topic in (Topic.PEDALS, Topic.POWERTRAIN, Topic.SAFETY))
-    assert ticks == 3001
+        assert set(publishers) <= {"vehicle", "scenario", "move", "driving", "speed"}
+        expected = {Topic.PEDALS: "speed", Topic.POWERTRAIN: "speed", Topic.SAFETY: "scenario",
+                    Topic.MOVE_COMMAND: "scenario", Topic.SET_SPEED: "driving",
+                    Topic.DRIVE_MODE: "move", Topic.STEER: "driving"}
+        assert all(m.publisher == expected[m.topic] for m in tick.messages if m.topic in expected)
+    assert ticks == demo_ticks()
 
 
 def test_scenario_attachment_rebuilds_the_same_scenario(tmp_path: Path) -> None:
@@ -182,7 +189,7 @@ def test_overdrive_sim_writes_run_mcap(tmp_path: Path) -> None:
         stats = make_reader(f).get_summary().statistics
     rows = len((tmp_path / "trace.csv").read_text(encoding="utf-8").splitlines()) - 1
     assert stats.message_count > 6 * rows
-    assert read_info(tmp_path / "run.mcap").nodes == ["vehicle", "scenario"]
+    assert read_info(tmp_path / "run.mcap").nodes == ["vehicle", "scenario", "move", "driving", "speed"]
     assert result.exit_code == 0
     no_mcap = run_scenario(load_scenario(DEMO), tmp_path / "b", plot=False, record_mcap=False)
     assert no_mcap.exit_code == 0 and not (tmp_path / "b" / "run.mcap").exists()

@@ -1,0 +1,619 @@
+"""The driving module (seed 003): authorizations, speed limits and steering in; SPSS and steering out.
+
+Each 10 ms period it validates its inputs, uses up every authorization to advance by the
+distance travelled (GPS/INS odometer), computes the goal speed (the highest speed that can
+still stop within the most restrictive authorization, under the acceleration ellipse, with a
+reaction allowance for the speed server's latency, capped by the lowest live speed limit, the
+gear and the lateral limit of the curve), rate-limits the curvature inside the ellipse, and
+sequences the speed server (seed 001) as its only client. Design and formulas:
+docs/driving-module.md; the ellipse: ``overdrive.dynamics``.
+
+Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
+``Notice(kind="rejected")`` for every rejected input.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import msgspec
+
+from overdrive.control import rate_limit
+from overdrive.dynamics import (
+    DEFAULT_ENVELOPE,
+    Ellipse,
+    EnvelopeConfig,
+    Longitudinal,
+    TractionMonitor,
+    ellipse_for,
+    lateral_available_mps2,
+    lateral_demand_mps2,
+    lateral_speed_limit_mps,
+    load_axes_mps2,
+    max_safe_speed_mps,
+    tyre_longitudinal_mps2,
+)
+from overdrive.messages import (
+    AdvanceAuthorization,
+    DriveMode,
+    DrivingStatus,
+    GpsIns,
+    MaxSpeed,
+    Notice,
+    SetSpeed,
+    SpeedState,
+    SteerCommand,
+    SteeringRequest,
+    Topic,
+    VehicleStatus,
+)
+from overdrive.vehicle.presets import G_MPS2, VehicleParams
+
+SOURCE = "driving"
+TIME_EPS_S = 1e-9   # slack when comparing simulated times built from integer ticks
+
+SPEED_STATES = ("parked", "reset", "starting", "startwait", "paused", "runwait", "idle",
+                "shifting", "run")
+REQUESTABLE = ("parked", "paused", "idle", "run")   # seed 001: only these can be requested
+
+
+class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
+    """Tuning of the driving module; every default says where it comes from."""
+
+    envelope: EnvelopeConfig = DEFAULT_ENVELOPE
+    reaction_s: float = 0.7            # speed-server latency allowance: SPSS period 0.1 + reference
+                                       # ease-in 0.3 + brake lag 0.08 + loop, with margin (measured)
+    plan_decel_fraction: float = 0.6   # the braking curve uses this share of the ellipse's A'
+                                       # (the speed server must be able to follow it, measured)
+    stop_margin_m: float = 0.10        # aim this far before the end of the authorization
+    creep_speed_mps: float = 0.3       # terminal phase: approach the stop point at this speed ...
+    creep_zone_m: float = 1.0          # ... over the last this many metres
+    stop_tail_s: float = 0.6           # a vehicle commanded to stop travels ~ v x this (measured)
+    cut_speed_mps: float = 0.6         # ... commanded only once the vehicle is this slow
+    min_move_m: float = 0.1            # a stop point closer than this is not worth moving to
+    max_speed_ttl_s: float = 0.5       # a limit not refreshed for this long lapses (5 refreshes
+                                       # at the 100 ms rate the sources send)
+    accel_mps2: float = 1.5            # comfort acceleration cap (~0.15 g)
+    min_rate_mps2: float = 0.05        # SPSS accel is "Always positive" (seed 004): smallest sent
+    max_rate_mps2: float = 9.0         # largest rate sent: the strongest preset brake (9 m/s^2)
+    lateral_use_fraction: float = 0.9  # speed cap in a curve uses this share of the lateral axis,
+                                       # leaving sqrt(1 - 0.9^2) = 44 % of A' for braking
+    overload_decel_fraction: float = 0.3  # outside the ellipse: brake at this share of A'
+    lat_jerk_mps3: float = 4.0         # lateral jerk limit on curvature changes (ride comfort)
+    steer_rate_fraction: float = 0.8   # of the actuator's road-wheel rate (it needs headroom)
+    spss_period_s: float = 0.1         # seed 001: an SPSS every 100 ms
+    sensor_timeout_s: float = 0.2      # GPS/INS older than this: no goal speed (2 x SPSS budget)
+    stopped_mps: float = 0.05          # standstill (plant's shift threshold; 2.5 sigma GPS noise)
+    accel_band_mps: float = 0.05       # |goal - v| below this counts as holding speed
+    low_gear_enter_fraction: float = 0.5   # limit <= this x low gear top speed: want low gear
+    low_gear_exit_fraction: float = 0.7    # ... and leave it above this (hysteresis)
+    low_gear_max_limit_mps: float = 3.0    # seed 003 "a very low speed limit": at most a jog
+    low_gear_exit_limit_mps: float = 4.0   # ... and the absolute exit threshold (hysteresis)
+    steep_pitch_fraction: float = 0.5  # |pitch| >= this x max_pitch: steep, want low gear
+    steep_exit_ratio: float = 0.7      # ... not steep again below 0.7 x that
+    slippery_hold_s: float = 30.0      # traction control seen within this: slippery, want low gear
+    gear_dwell_s: float = 1.0          # a wish for another gear must last this long
+    gear_speed_fraction: float = 0.9   # goal <= this x gear top speed (redline fade, seed 001 limits)
+
+
+# --------------------------------------------------------------------------- validation
+
+def _finite(*values: Any) -> bool:
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+               for v in values)
+
+
+def validate_steering(msg: Any, params: VehicleParams) -> str:
+    """Reason to reject a SteeringRequest, or "" to accept it."""
+    if not isinstance(msg, SteeringRequest):
+        return f"steering: not a SteeringRequest ({type(msg).__name__})"
+    if not _finite(msg.curvature_1pm):
+        return f"steering: curvature_1pm {msg.curvature_1pm} is not finite"
+    if abs(msg.curvature_1pm) > params.max_curvature_1pm:
+        return (f"steering: |curvature_1pm| {abs(msg.curvature_1pm):.6g} beyond the vehicle's "
+                f"{params.max_curvature_1pm:.6g}")
+    return ""
+
+
+def _valid_source(source: Any) -> bool:
+    return isinstance(source, str) and bool(source)
+
+
+def validate_max_speed(msg: Any) -> str:
+    if not isinstance(msg, MaxSpeed):
+        return f"max_speed: not a MaxSpeed ({type(msg).__name__})"
+    if not _valid_source(msg.source):
+        return "max_speed: empty source"
+    if not _finite(msg.speed_mps):
+        return f"max_speed: speed_mps {msg.speed_mps} from {msg.source!r} is not finite"
+    if msg.speed_mps < 0.0:
+        return f"max_speed: speed_mps {msg.speed_mps} from {msg.source!r} is negative"
+    return ""
+
+
+def validate_advance(msg: Any) -> str:
+    if not isinstance(msg, AdvanceAuthorization):
+        return f"advance: not an AdvanceAuthorization ({type(msg).__name__})"
+    if not _valid_source(msg.source):
+        return "advance: empty source"
+    if not isinstance(msg.reverse, bool):
+        return f"advance: reverse {msg.reverse!r} is not a bool"
+    if not _finite(msg.distance_m):
+        return f"advance: distance_m {msg.distance_m} from {msg.source!r} is not finite"
+    if msg.distance_m < 0.0:
+        return f"advance: distance_m {msg.distance_m} from {msg.source!r} is negative"
+    return ""
+
+
+def validate_drive_mode(msg: Any) -> str:
+    if not isinstance(msg, DriveMode):
+        return f"drive_mode: not a DriveMode ({type(msg).__name__})"
+    if msg.state not in REQUESTABLE:
+        return f"drive_mode: state {msg.state!r} cannot be requested ({', '.join(REQUESTABLE)})"
+    if msg.direction not in ("forward", "reverse"):
+        return f"drive_mode: direction {msg.direction!r} is not forward or reverse"
+    if not isinstance(msg.fault, int) or isinstance(msg.fault, bool) or msg.fault < 0:
+        return f"drive_mode: fault {msg.fault!r} is not a non-negative integer"
+    return ""
+
+
+def validate_gps(msg: Any) -> str:
+    if not isinstance(msg, GpsIns):
+        return f"gps_ins: not a GpsIns ({type(msg).__name__})"
+    if not _finite(msg.speed_mps, msg.pitch_rad, msg.roll_rad, msg.odometer_m):
+        return "gps_ins: speed, attitude or odometer not finite"
+    return ""
+
+
+def validate_speed_state(msg: Any) -> str:
+    if not isinstance(msg, SpeedState):
+        return f"speed_state: not a SpeedState ({type(msg).__name__})"
+    if msg.state not in SPEED_STATES or not _finite(msg.speed_mps):
+        return f"speed_state: state {msg.state!r} unknown or speed not finite"
+    return ""
+
+
+# --------------------------------------------------------------------------- pure limiters
+
+def curvature_bounds_1pm(e: Ellipse, speed_mps: float, lon_demand_mps2: float,
+                         grade_rad: float = 0.0, roll_rad: float = 0.0) -> tuple[float, float]:
+    """``(lo, hi)``: curvatures whose lateral demand fits beside ``lon_demand_mps2`` at ``speed_mps``.
+
+    Lateral room ``L = B' sqrt(1 - (f_x/A')^2)``; ``v^2 k - g sin(roll)`` must lie in
+    ``[-L, L]``, so ``hi = (L + c) / v^2``, ``lo = -(L - c) / v^2``. Unbounded at a standstill.
+    """
+    v2 = speed_mps * speed_mps
+    if v2 < 1e-9:
+        return -math.inf, math.inf
+    room = lateral_available_mps2(e, lon_demand_mps2, grade_rad, roll_rad)
+    c = G_MPS2 * math.sin(roll_rad)
+    return -(room - c) / v2, (room + c) / v2
+
+
+def limit_curvature(requested_1pm: float, last_1pm: float, lo_1pm: float, hi_1pm: float,
+                    max_rate_1pmps: float, dt_s: float) -> float:
+    """Move towards ``requested`` inside ``[lo, hi]``, at most ``max_rate * dt`` per step.
+
+    Never steers further out of the ellipse than ``last``, and never back into it either
+    (seed 003: "if it moves, we don't try to steer back into it. We let braking handle that"):
+    a ``last`` already outside widens its own side of the bounds to itself.
+    """
+    lo = min(lo_1pm, last_1pm)
+    hi = max(hi_1pm, last_1pm)
+    target = min(max(requested_1pm, lo), hi)
+    return rate_limit(target, last_1pm, max_rate_1pmps, dt_s)
+
+
+def steer_pct_for(curvature_1pm: float, params: VehicleParams) -> float:
+    """Kinematic bicycle: road-wheel angle ``atan(k L)`` as % of full lock, + right."""
+    return math.atan(curvature_1pm * params.wheelbase_m) / params.max_steer_rad * 100.0
+
+
+def longitudinal_command(goal_mps: float, speed_mps: float, limits: Longitudinal,
+                         overload_decel_mps2: float | None,
+                         config: DrivingConfig) -> tuple[float, float, float]:
+    """``(speed, rate, signed accel)`` for the SPSS: reach ``goal`` inside the ellipse.
+
+    Up: ``rate = min(comfort, accel available)``; when nothing is available the speed is held.
+    Down: the whole deceleration available (the braking curve assumes it), or the overload
+    rate when the vehicle is already outside the ellipse. The signed acceleration (0 within
+    ``accel_band_mps`` of the goal) is what the steering allocation counts as in use.
+    """
+    band = config.accel_band_mps
+    if goal_mps >= speed_mps:
+        rate = min(config.accel_mps2, limits.accel_mps2)
+        if rate < config.min_rate_mps2:
+            return min(goal_mps, speed_mps), config.min_rate_mps2, 0.0
+        rate = min(rate, config.max_rate_mps2)
+        return goal_mps, rate, rate if goal_mps > speed_mps + band else 0.0
+    rate = overload_decel_mps2 if overload_decel_mps2 is not None else limits.decel_mps2
+    rate = min(max(rate, config.min_rate_mps2), config.max_rate_mps2)
+    return goal_mps, rate, -rate if goal_mps < speed_mps - band else 0.0
+
+
+def stop_tail_m(speed_mps: float, grade_rad: float, tail_s: float) -> float:
+    """Distance the vehicle rolls after a stop is commanded at ``speed_mps``.
+
+    The speed server brings its reference to 0 and its speed loop decays the speed roughly
+    exponentially (``v * tail_s``); uphill it only coasts, so gravity stops it sooner:
+    ``min(v * tail_s, v^2 / (2 g sin(grade)))``.
+    """
+    v = abs(speed_mps)
+    tail = v * tail_s
+    g_along = G_MPS2 * math.sin(grade_rad)
+    return min(tail, v * v / (2.0 * g_along)) if g_along > 0.0 else tail
+
+
+# --------------------------------------------------------------------------- inputs kept per source
+
+class SpeedLimits:
+    """Per-source speed limits; the lowest live one applies; each lapses after ``ttl_s``."""
+
+    def __init__(self, ttl_s: float) -> None:
+        self.ttl_s = ttl_s
+        self.by_source: dict[str, tuple[float, float]] = {}   # source -> (speed, received_s)
+
+    def update(self, source: str, speed_mps: float, now_s: float) -> None:
+        self.by_source[source] = (speed_mps, now_s)
+
+    def lowest_mps(self, now_s: float) -> float:
+        """Lowest live limit; ``inf`` when none is live (the gear's limit then applies)."""
+        live = [s for s, t in self.by_source.values() if now_s - t <= self.ttl_s + TIME_EPS_S]
+        return min(live, default=math.inf)
+
+
+class Authorizations:
+    """Per-(source, direction) authorizations, used up by the odometer; the shortest applies."""
+
+    def __init__(self) -> None:
+        self.by_source: dict[tuple[str, bool], tuple[float, float]] = {}  # -> (distance, odo0)
+
+    def update(self, source: str, reverse: bool, distance_m: float, odometer_m: float) -> None:
+        self.by_source[(source, reverse)] = (distance_m, odometer_m)
+
+    def remaining_m(self, reverse: bool, odometer_m: float) -> float:
+        """Shortest remaining distance for the direction; NaN when no source authorized it."""
+        left = [max(0.0, d - (odometer_m - odo0))
+                for (_, rev), (d, odo0) in self.by_source.items() if rev == reverse]
+        return min(left) if left else math.nan
+
+
+# --------------------------------------------------------------------------- speed-server client
+
+REQUEST_TOWARD: dict[str, dict[str, str | None]] = {
+    # target state -> the speed server's state -> the state to request. None: keep the last
+    # request (the server is on its way: starting an engine, waiting, shifting).
+    "run": {"parked": "paused", "reset": None, "starting": None, "startwait": None,
+            "paused": "idle", "runwait": None, "idle": "run", "shifting": None, "run": "run"},
+    "idle": {"parked": "paused", "reset": None, "starting": None, "startwait": None,
+             "paused": "idle", "runwait": None, "idle": "idle", "shifting": None, "run": "idle"},
+    "paused": {"parked": "paused", "reset": None, "starting": None, "startwait": None,
+               "paused": "paused", "runwait": "paused", "idle": "paused", "shifting": "paused",
+               "run": "paused"},
+    "parked": {"parked": "parked", "reset": "parked", "starting": "parked", "startwait": "parked",
+               "paused": "parked", "runwait": "paused", "idle": "paused", "shifting": "paused",
+               "run": "paused"},
+}
+"""Seed 001's sequence as a table: parked -> paused -> idle (gear) -> run; back through idle."""
+
+
+class Request(msgspec.Struct, frozen=True):
+    state: str
+    gear: str
+    drive: bool = False     # the goal speed may be sent (else speed 0)
+
+
+def client_request(target: str, server_state: str, server_gear: str, want_gear: str,
+                   stopped: bool, last: Request | None) -> Request:
+    """What to ask the speed server for next, from ``REQUEST_TOWARD`` plus the gear rules.
+
+    Gears change only in idle: in run with the wrong gear, stop (speed 0), then request idle in
+    the current gear; in idle with the wrong gear, request idle with the new gear (a shift);
+    in idle with the right gear, request run. Leaving run waits for a standstill.
+    """
+    state = REQUEST_TOWARD[target][server_state]
+    if state is None:
+        if last is not None:
+            return Request(last.state, last.gear)
+        return Request(target if target in ("run", "idle") else "paused", want_gear)
+    if server_state == "run":
+        if target == "run" and server_gear == want_gear:
+            return Request("run", server_gear, drive=True)
+        if not stopped:
+            return Request("run", server_gear)
+        return Request("idle" if target in ("run", "idle") else state, server_gear)
+    if server_state == "idle" and target in ("run", "idle"):
+        if server_gear != want_gear:
+            return Request("idle", want_gear)
+        return Request(state, want_gear)
+    if state == "idle":
+        return Request("idle", want_gear)
+    return Request(state, server_gear)
+
+
+def wants_low_gear(params: VehicleParams, in_low: bool, limit_mps: float, slippery: bool,
+                   pitch_rad: float, config: DrivingConfig) -> bool:
+    """Low gear for a low limit, slippery or steep ground (seed 001), with hysteresis."""
+    low_max = params.gear(params.low_gear).max_speed_mps
+    steep = config.steep_pitch_fraction * params.max_pitch_rad
+    if slippery:
+        return True
+    if in_low:
+        return (abs(pitch_rad) >= config.steep_exit_ratio * steep
+                or limit_mps <= min(config.low_gear_exit_fraction * low_max,
+                                    config.low_gear_exit_limit_mps))
+    return abs(pitch_rad) >= steep or limit_mps <= min(config.low_gear_enter_fraction * low_max,
+                                                       config.low_gear_max_limit_mps)
+
+
+# --------------------------------------------------------------------------- the node
+
+class DrivingModule:
+    """Seed-003 driving module node (see the module docstring)."""
+
+    name = "driving"
+    period_s = 0.01
+    subscriptions = (Topic.STEERING, Topic.MAX_SPEED, Topic.ADVANCE, Topic.DRIVE_MODE,
+                     Topic.SPEED_STATE, Topic.GPS_INS, Topic.IMU, Topic.VEHICLE_STATUS)
+
+    def __init__(self, params: VehicleParams, *, config: DrivingConfig | None = None,
+                 friction: float = 0.8) -> None:
+        if not (math.isfinite(friction) and friction > 0.0):
+            raise ValueError(f"friction: must be a positive finite number, got {friction}")
+        self.params = params
+        self.config = cfg = config or DrivingConfig()
+        self.friction = friction    # assumed: the module has no friction sensor (see docs)
+        self.traction = TractionMonitor(cfg.envelope)
+        self.limits = SpeedLimits(cfg.max_speed_ttl_s)
+        self.authorizations = Authorizations()
+        self.mode = DriveMode(state="run", direction="forward")
+        self.requested_1pm = 0.0
+        self.curvature_1pm = 0.0
+        self.gps: GpsIns | None = None
+        self.gps_s = -math.inf
+        self.odometer_m = 0.0
+        self.speed_state: SpeedState | None = None
+        self.slippery_s = -math.inf
+        self.rejected = ""
+        self._sensor_rejection = ""
+        self.planned_gear = params.drive_gear
+        self._wish: tuple[str, float] | None = None
+        self.request: Request | None = None
+        self.next_spss_s = -math.inf
+        self.last_now_s: float | None = None
+        self.first_s: float | None = None
+        self.a_signed_mps2 = 0.0
+        self.goal_mps = 0.0
+        self._cut: float | None = None   # distance left when the terminal stop was commanded
+        self._cut_direction = False
+
+    # ------------------------------------------------------------------ inputs
+
+    def _reject(self, code: str, reason: str, out: list) -> None:
+        self.rejected = reason
+        out.append((Topic.NOTICE, Notice(kind="rejected", source=SOURCE, code=code, reason=reason)))
+
+    def _sensor(self, reason: str, out: list) -> bool:
+        """Accept a sensor message ("" reason) or reject it, noticing each new reason once."""
+        if not reason:
+            return True
+        if reason != self._sensor_rejection:
+            self._sensor_rejection = reason
+            self._reject("sensor", reason, out)
+        return False
+
+    def _receive(self, now_s: float, topic: str, msg: Any, out: list) -> None:
+        if topic == Topic.STEERING:
+            reason = validate_steering(msg, self.params)
+            if reason:
+                self._reject("steering", reason, out)
+            else:
+                self.requested_1pm = float(msg.curvature_1pm)
+        elif topic == Topic.MAX_SPEED:
+            reason = validate_max_speed(msg)
+            if reason:
+                self._reject("max_speed", reason, out)
+            else:
+                self.limits.update(msg.source, float(msg.speed_mps), now_s)
+        elif topic == Topic.ADVANCE:
+            reason = validate_advance(msg)
+            if reason:
+                self._reject("advance", reason, out)
+            else:
+                self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m),
+                                           self.odometer_m)
+        elif topic == Topic.DRIVE_MODE:
+            reason = validate_drive_mode(msg)
+            if reason:
+                self._reject("drive_mode", reason, out)
+            else:
+                self.mode = msg
+        elif topic == Topic.GPS_INS:
+            if self._sensor(validate_gps(msg), out):
+                self.gps, self.gps_s = msg, now_s
+                self.odometer_m = msg.odometer_m
+        elif topic == Topic.SPEED_STATE:
+            if self._sensor(validate_speed_state(msg), out):
+                self.speed_state = msg
+                if msg.hint == "slipping":
+                    self._slip(now_s)
+        elif (topic == Topic.VEHICLE_STATUS and isinstance(msg, VehicleStatus)
+              and msg.traction_control is True):
+            self._slip(now_s)
+
+    def _slip(self, now_s: float) -> None:
+        self.traction.update(now_s, True)
+        self.slippery_s = now_s
+
+    # ------------------------------------------------------------------ step
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        for topic, msg in inbox:
+            self._receive(now_s, topic, msg, out)
+        dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
+        self.last_now_s = now_s
+        p, cfg = self.params, self.config
+
+        fresh = self.gps is not None and now_s - self.gps_s <= cfg.sensor_timeout_s + TIME_EPS_S
+        if fresh:
+            v = abs(self.gps.speed_mps)
+        else:
+            v = abs(self.speed_state.speed_mps) if self.speed_state is not None else 0.0
+        reverse = self.mode.direction == "reverse"
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        roll = self.gps.roll_rad if self.gps is not None else 0.0
+        grade = -pitch if reverse else pitch
+        ell = ellipse_for(p, self.friction, cfg.envelope, self.traction.shrink(now_s))
+        lon_axis, lat_axis = load_axes_mps2(ell, grade, roll)
+        g_along = G_MPS2 * math.sin(grade)
+
+        # longitudinal allocation: the path's curve if it fits, else the curve we are in
+        d_req = abs(lateral_demand_mps2(v, self.requested_1pm, roll))
+        d_cmd = abs(lateral_demand_mps2(v, self.curvature_1pm, roll))
+        demand = max(d_req, d_cmd) if d_req <= lat_axis else d_cmd
+        overload = demand > lat_axis
+        tyre = tyre_longitudinal_mps2(lon_axis, lat_axis, demand)
+        limits = Longitudinal(accel_mps2=tyre - g_along, decel_mps2=tyre + g_along)
+
+        source_limit = self.limits.lowest_mps(now_s)
+        remaining = self.authorizations.remaining_m(reverse, self.odometer_m)
+        self._plan_gear(now_s, v, source_limit, pitch, remaining)
+        server = self.speed_state
+        driving_gear = server.gear if server is not None and server.state == "run" \
+            else self.planned_gear
+        gear_cap = self._gear_cap(driving_gear)
+        speed_limit = min(source_limit, gear_cap)
+
+        curves = (self.requested_1pm, self.curvature_1pm)
+        cap_ell = Ellipse(lon_mps2=ell.lon_mps2, lat_mps2=ell.lat_mps2 * cfg.lateral_use_fraction)
+        v_lat = min(lateral_speed_limit_mps(cap_ell, k, grade, roll) for k in curves)
+        v_auth = 0.0
+        if self._cut_direction != reverse:
+            self._cut, self._cut_direction = None, reverse
+        if math.isfinite(remaining):
+            v_auth = self._authorized_speed(remaining - cfg.stop_margin_m, v, ell, grade, roll)
+        request = self._client(now_s, v)
+        goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
+        self.goal_mps = goal
+
+        if self.first_s is None:
+            self.first_s = now_s
+        waiting = server is None and now_s < self.first_s + cfg.spss_period_s - TIME_EPS_S
+        if now_s + TIME_EPS_S >= self.next_spss_s and not waiting:
+            overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
+            speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, limits,
+                                                                       overload_rate, cfg)
+            if not request.drive:
+                speed_cmd = 0.0
+            out.append((Topic.SET_SPEED, SetSpeed(
+                speed_mps=speed_cmd, accel_mps2=rate, gear=request.gear, state=request.state,
+                fault=self.mode.fault)))
+            self.next_spss_s = max(self.next_spss_s + cfg.spss_period_s, now_s)
+            if self.next_spss_s <= now_s + TIME_EPS_S:
+                self.next_spss_s = now_s + cfg.spss_period_s
+
+        # steering: rate- and jerk-limited, inside what the longitudinal command leaves
+        lo, hi = curvature_bounds_1pm(ell, v, self.a_signed_mps2 + g_along, grade, roll)
+        rate_1pmps = cfg.steer_rate_fraction * p.steer_rate_rps / p.wheelbase_m
+        if v * v > 0.0:
+            rate_1pmps = min(rate_1pmps, cfg.lat_jerk_mps3 / (v * v))
+        k = limit_curvature(self.requested_1pm, self.curvature_1pm, lo, hi, rate_1pmps, dt_s)
+        self.curvature_1pm = min(max(k, -p.max_curvature_1pm), p.max_curvature_1pm)
+
+        out.append((Topic.STEER, SteerCommand(steer_pct=steer_pct_for(self.curvature_1pm, p),
+                                              source=SOURCE)))
+        out.append((Topic.DRIVING_STATUS, DrivingStatus(
+            goal_speed_mps=goal, authorized_m=remaining, speed_limit_mps=speed_limit,
+            curvature_1pm=self.curvature_1pm, accel_limit_mps2=limits.accel_mps2,
+            decel_limit_mps2=limits.decel_mps2, rejected=self.rejected)))
+        return out
+
+    # ------------------------------------------------------------------ helpers
+
+    def _authorized_speed(self, distance_m: float, v: float, ell: Ellipse, grade: float,
+                          roll: float) -> float:
+        """Goal speed for ``distance_m`` left to the stop point (docs: terminal approach)."""
+        cfg = self.config
+        if self._cut is not None:
+            if distance_m <= self._cut + cfg.min_move_m:
+                return 0.0   # stopped at the end: wait for an authorization that reaches further
+            self._cut = None
+        plan = Ellipse(lon_mps2=ell.lon_mps2 * cfg.plan_decel_fraction, lat_mps2=ell.lat_mps2)
+        curves = (self.requested_1pm, self.curvature_1pm)
+        creep = min(cfg.creep_speed_mps,
+                    *(max_safe_speed_mps(plan, distance_m, k, grade, roll, cfg.reaction_s)
+                      for k in curves))
+        tail = stop_tail_m(v, grade, cfg.stop_tail_s)
+        if distance_m <= cfg.min_move_m or (v <= cfg.cut_speed_mps and distance_m <= tail):
+            self._cut = distance_m
+            return 0.0
+        brake = min(max_safe_speed_mps(plan, distance_m - cfg.creep_zone_m, k, grade, roll,
+                                       cfg.reaction_s) for k in curves)
+        return max(brake, creep)
+
+    def _gear_cap(self, gear_name: str) -> float:
+        p = self.params
+        if gear_name not in p.gear_names:
+            return 0.0
+        gear = p.gear(gear_name)
+        return gear.max_speed_mps * self.config.gear_speed_fraction if gear.direction else 0.0
+
+    def _plan_gear(self, now_s: float, v: float, source_limit: float, pitch: float,
+                   remaining: float) -> None:
+        """Choose the gear the client sequences towards (hysteresis in docs/driving-module.md)."""
+        p, cfg = self.params, self.config
+        slippery = now_s - self.slippery_s < cfg.slippery_hold_s
+        if self.mode.direction == "reverse":
+            want = p.reverse_gear
+        else:
+            low = wants_low_gear(p, self.planned_gear == p.low_gear, source_limit, slippery,
+                                 pitch, cfg)
+            want = p.low_gear if low else p.drive_gear
+        if want == self.planned_gear:
+            self._wish = None
+            return
+        current_dir = p.gear(self.planned_gear).direction
+        if p.gear(want).direction != current_dir:
+            self.planned_gear = want   # a change of direction cannot wait; the client stops first
+            self._wish = None
+            return
+        if self._wish is None or self._wish[0] != want:
+            self._wish = (want, now_s)
+        server = self.speed_state
+        state = server.state if server is not None else "parked"
+        stopped = v < cfg.stopped_mps
+        terrain = slippery or abs(pitch) >= cfg.steep_pitch_fraction * p.max_pitch_rad
+        idle_time = not (remaining > cfg.stop_margin_m)   # no authorization left: waiting anyway
+        held = now_s - self._wish[1] >= cfg.gear_dwell_s - TIME_EPS_S
+        if state in ("runwait", "shifting"):
+            return   # on its way to a gear already; changing now would cost another runwait
+        free = state in ("parked", "reset", "starting", "startwait", "paused") or (
+            state == "idle" and stopped)
+        if free or (held and stopped and (terrain or idle_time)):
+            self.planned_gear = want
+            self._wish = None
+
+    def _client(self, now_s: float, v: float) -> Request:
+        """The current request to the speed server (kept between SPSS sends)."""
+        server = self.speed_state
+        target = self.mode.state
+        stopped = v < self.config.stopped_mps
+        if server is None:
+            request = Request(target, self.planned_gear, drive=False)
+        else:
+            request = client_request(target, server.state, server.gear, self.planned_gear,
+                                     stopped, self.request)
+        if now_s + TIME_EPS_S >= self.next_spss_s:
+            self.request = request
+        return request
+
+
+__all__ = [
+    "REQUEST_TOWARD", "Authorizations", "DrivingConfig", "DrivingModule", "Request",
+    "SpeedLimits", "client_request", "curvature_bounds_1pm", "limit_curvature",
+    "longitudinal_command", "steer_pct_for", "validate_advance", "validate_drive_mode",
+    "validate_max_speed", "validate_steering", "wants_low_gear",
+]

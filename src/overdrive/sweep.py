@@ -1,0 +1,182 @@
+"""Monte Carlo validation: ``overdrive sweep SCENARIO --runs N``.
+
+Each run takes the scenario with its own seed and sampled parameters (friction, grade,
+obstacle placement, the times of fault and safety events), runs it on one core of a process
+pool, and keeps the safety-invariant violations the independent monitor found, the final
+authorization margin (stopping error) and the peak accelerations. The worst runs are written
+out as complete scenario files, so ``overdrive sim out/worst/run-N.yaml`` replays each exactly.
+
+The sampling ranges come from the scenario's optional ``sweep:`` block (docs/scenarios.md);
+expectations (``expect``) are reported but only invariant violations fail the sweep: sampled
+conditions legitimately move the figures an expectation pins down.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import random
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario
+
+JITTERED_KINDS = frozenset({
+    "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
+    "manual_override", "emergency_manual_override", "estop_button", "internal_error", "door",
+    "world",
+})
+"""Event kinds whose times are sampled: faults and safety devices, never the commands."""
+
+
+def sample_scenario(data: dict[str, Any], run: int, base_seed: int, sweep: SweepSpec) -> dict[str, Any]:
+    """The scenario data of run ``run``: its seed and sampled parameters."""
+    seed = base_seed + run
+    rng = random.Random(f"overdrive-sweep/{seed}")
+    out = copy.deepcopy(data)
+    out.pop("sweep", None)
+    out.pop("expect", None) if sweep.drop_expectations else None
+    out["seed"] = seed
+    out["name"] = f"{data.get('name', 'sweep')}-run{run}"
+    world = out.setdefault("world", {})
+    if sweep.friction is not None:
+        world["friction"] = round(rng.uniform(*sweep.friction), 4)
+    if sweep.grade_percent is not None and not isinstance(world.get("grade_percent"), list):
+        world["grade_percent"] = round(rng.uniform(*sweep.grade_percent), 3)
+    if sweep.obstacle_jitter_m and world.get("obstacles"):
+        world["obstacles"] = [
+            {"x_m": round(o["x_m"] + rng.uniform(-1, 1) * sweep.obstacle_jitter_m, 3),
+             "y_m": o["y_m"]} for o in world["obstacles"]]
+    duration = float(out.get("duration_s", 60.0))
+    if sweep.event_jitter_s:
+        for event in out.get("events", []):
+            if JITTERED_KINDS & set(event):
+                shifted = event["at_s"] + rng.uniform(-1, 1) * sweep.event_jitter_s
+                event["at_s"] = round(min(max(shifted, 0.0), duration), 3)
+    return out
+
+
+def run_one(job: tuple[dict[str, Any], str, int]) -> dict[str, Any]:
+    """Run one sampled scenario (in a worker process); return its figures."""
+    from overdrive.sim import run_scenario
+
+    data, source, run = job
+    scenario = parse_scenario(data, f"{source} (run {run})")
+    summary = run_scenario(scenario, None, keep_trace=False, plot=False).summary
+    invariants = [v for v in summary["violations"] if v.startswith("invariant ")]
+    return {
+        "run": run,
+        "seed": data["seed"],
+        "friction": data["world"].get("friction"),
+        "grade_percent": data["world"].get("grade_percent"),
+        "invariant_violations": invariants,
+        "expectation_failures": [v for v in summary["violations"] if not v.startswith("invariant ")],
+        "authorization_margin_m": min((s["authorization_margin_m"] for s in summary["stops"]),
+                                      default=None),
+        "odometer_m": summary["odometer_m"],
+        "final_speed_mps": summary["final"]["speed_mps"],
+        "max_speed_mps": summary["peaks"]["max_speed_mps"],
+        "max_accel_mps2": summary["peaks"]["max_accel_mps2"],
+        "max_decel_mps2": summary["peaks"]["max_decel_mps2"],
+        "max_lateral_accel_mps2": summary["peaks"]["max_lateral_accel_mps2"],
+        "estops": sum(1 for e in summary["events"] if e["kind"] == "estop"),
+        "data": data,
+    }
+
+
+def load_raw(path: Path) -> tuple[dict[str, Any], SweepSpec]:
+    """Read and validate the scenario; return its raw data and sweep block."""
+    scenario = parse_scenario(yaml.safe_load(path.read_text(encoding="utf-8")), str(path))
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    return data, scenario.spec.sweep
+
+
+def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None = None,
+          worst: int = 5) -> dict[str, Any]:
+    """Run the sweep, write ``sweep.json``, ``runs.csv``, ``distributions.png`` and the worst runs."""
+    data, spec = load_raw(path)
+    base = int(data.get("seed", 1)) if base_seed is None else base_seed
+    job_list = [(sample_scenario(data, i, base, spec), str(path), i) for i in range(runs)]
+    for job in job_list:   # fail fast, before any worker starts, on an invalid sample
+        parse_scenario(job[0], f"{path} (run {job[2]})")
+    jobs = max(1, min(jobs, runs))
+    if jobs == 1:
+        results = [run_one(job) for job in job_list]
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            results = list(pool.map(run_one, job_list, chunksize=max(1, runs // (jobs * 8))))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    violating = [r for r in results if r["invariant_violations"]]
+    margins = [r["authorization_margin_m"] for r in results if r["authorization_margin_m"] is not None]
+
+    def badness(r: dict[str, Any]) -> tuple:
+        margin = r["authorization_margin_m"]
+        return (len(r["invariant_violations"]), -(margin if margin is not None else math.inf),
+                r["max_decel_mps2"])
+
+    worst_runs = sorted(results, key=badness, reverse=True)[:worst]
+    worst_dir = out_dir / "worst"
+    worst_dir.mkdir(exist_ok=True)
+    for r in worst_runs:
+        (worst_dir / f"run-{r['run']}.yaml").write_text(
+            yaml.safe_dump(r["data"], sort_keys=False), encoding="utf-8")
+    report = {
+        "scenario": str(path),
+        "runs": runs,
+        "violations": sum(len(r["invariant_violations"]) for r in results),
+        "violating_runs": [r["run"] for r in violating],
+        "expectation_failures": sum(len(r["expectation_failures"]) for r in results),
+        "authorization_margin_m": _stats(margins),
+        "max_decel_mps2": _stats([r["max_decel_mps2"] for r in results]),
+        "max_accel_mps2": _stats([r["max_accel_mps2"] for r in results]),
+        "max_lateral_accel_mps2": _stats([r["max_lateral_accel_mps2"] for r in results]),
+        "worst": [{k: r[k] for k in ("run", "seed", "friction", "grade_percent",
+                                     "authorization_margin_m", "max_decel_mps2",
+                                     "invariant_violations")}
+                  | {"replay": "overdrive sim " + str(worst_dir / "run-{}.yaml".format(r["run"]))}
+                  for r in worst_runs],
+    }
+    (out_dir / "sweep.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    columns = ("run", "seed", "friction", "grade_percent", "authorization_margin_m", "odometer_m",
+               "final_speed_mps", "max_speed_mps", "max_accel_mps2", "max_decel_mps2",
+               "max_lateral_accel_mps2", "estops")
+    lines = [",".join(columns)]
+    lines += [",".join("" if r[c] is None else str(r[c]) for c in columns)
+              + "," + str(len(r["invariant_violations"])) for r in results]
+    lines[0] += ",invariant_violations"
+    (out_dir / "runs.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    _plot(results, out_dir / "distributions.png")
+    return report
+
+
+def _stats(values: list[float]) -> dict[str, float] | None:
+    if not values:
+        return None
+    ordered = sorted(values)
+    return {"min": ordered[0], "median": ordered[len(ordered) // 2],
+            "p95": ordered[min(len(ordered) - 1, int(0.95 * len(ordered)))], "max": ordered[-1]}
+
+
+def _plot(results: list[dict[str, Any]], out_png: Path) -> None:
+    from overdrive.plot import plot_distributions
+
+    samples = {
+        "smallest authorization margin at a stop (m)": [r["authorization_margin_m"] for r in results
+                                                if r["authorization_margin_m"] is not None],
+        "peak deceleration (m/s^2)": [r["max_decel_mps2"] for r in results],
+        "peak acceleration (m/s^2)": [r["max_accel_mps2"] for r in results],
+        "peak lateral acceleration (m/s^2)": [r["max_lateral_accel_mps2"] for r in results],
+    }
+    plot_distributions({k: v for k, v in samples.items() if v}, out_png)
+
+
+def default_jobs() -> int:
+    return os.cpu_count() or 1
+
+
+__all__ = ["ScenarioError", "sample_scenario", "sweep"]

@@ -1,0 +1,71 @@
+"""Monte Carlo sweeps: sampling, parallel runs, invariant figures, replayable worst cases."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import yaml
+from click.testing import CliRunner
+
+from overdrive.cli import main
+from overdrive.scenario import SweepSpec
+from overdrive.sweep import sample_scenario, sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+SPSS_LOSS = ROOT / "scenarios" / "sweep-spss-loss.yaml"
+
+
+def test_sampling_is_seeded_and_within_ranges() -> None:
+    data = yaml.safe_load(SPSS_LOSS.read_text())
+    spec = SweepSpec(friction=(0.6, 1.0), grade_percent=(-5.0, 5.0), event_jitter_s=4.0)
+    a = [sample_scenario(data, i, 100, spec) for i in range(50)]
+    assert a == [sample_scenario(data, i, 100, spec) for i in range(50)], "deterministic"
+    drops = [next(e for e in s["events"] if "drop" in e)["at_s"] for s in a]
+    assert min(drops) >= 2.0 and max(drops) <= 10.0 and len(set(drops)) > 40
+    assert all(0.6 <= s["world"]["friction"] <= 1.0 and -5 <= s["world"]["grade_percent"] <= 5 for s in a)
+    commands = [next(e for e in s["events"] if "set_speed" in e)["at_s"] for s in a]
+    assert set(commands) == {0.5}, "commands keep their times; only faults are jittered"
+
+
+def test_spss_stream_lost_at_random_times_200_runs(tmp_path: Path) -> None:
+    report = sweep(SPSS_LOSS, 200, 2, tmp_path)
+    assert report["violations"] == 0, report["violating_runs"]
+    runs = (tmp_path / "runs.csv").read_text().splitlines()[1:]
+    assert len(runs) == 200
+    estops = [int(line.split(",")[11]) for line in runs]
+    assert min(estops) >= 1, "every run shows the watchdog's emergency stop"
+    assert report["expectation_failures"] == 0
+
+
+def test_move_sweep_and_worst_cases_replay(tmp_path: Path) -> None:
+    scenario = ROOT / "scenarios" / "move-straight.yaml"
+    result = CliRunner().invoke(main, ["sweep", str(scenario), "--runs", "20", "--jobs", "2",
+                                       "--out", str(tmp_path / "sw")])
+    assert result.exit_code == 0, result.output
+    assert "0 violations in 20 runs" in result.output
+    report = json.loads((tmp_path / "sw" / "sweep.json").read_text())
+    worst = report["worst"][0]
+    assert worst["authorization_margin_m"] >= 0.0
+    replay = CliRunner().invoke(main, ["sim", str(tmp_path / "sw" / "worst" / f"run-{worst['run']}.yaml"),
+                                       "--out", str(tmp_path / "replay"), "--quiet"])
+    assert replay.exit_code in (0, 1)
+    summary = json.loads((tmp_path / "replay" / "summary.json").read_text())
+    assert min(s["authorization_margin_m"] for s in summary["stops"]) == worst["authorization_margin_m"]
+    assert (tmp_path / "sw" / "distributions.png").stat().st_size > 10_000
+
+
+def test_sweep_exits_1_on_invariant_violation(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({"name": "bad", "duration_s": 3, "events": [
+        {"at_s": 1, "actuators": {"throttle_pct": 10, "brake_pct": 10}}]}))
+    result = CliRunner().invoke(main, ["sweep", str(bad), "--runs", "3", "--jobs", "1",
+                                       "--out", str(tmp_path / "o")])
+    assert result.exit_code == 1 and "3 violations in 3 runs" in result.output
+
+
+def test_sweep_rejects_invalid_scenario(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nsweep: {friction: [0.2, 9]}\n")
+    result = CliRunner().invoke(main, ["sweep", str(bad), "--runs", "2", "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2 and "sweep.friction" in result.output
