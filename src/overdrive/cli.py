@@ -84,6 +84,53 @@ def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, 
     raise SystemExit(result.exit_code)
 
 
+@main.command("sweep")
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--runs", type=click.IntRange(1, 1_000_000), default=100, show_default=True)
+@click.option("--jobs", type=click.IntRange(1, 256), default=None,
+              help="Worker processes (default: one per core).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Sweep folder (default runs/sweep-NAME-TIMESTAMP/).")
+@click.option("--seed", type=click.IntRange(0, 2**62), help="Seed of run 0 (default: the scenario's).")
+def sweep_command(scenario: Path, runs: int, jobs: int | None, out_dir: Path | None,
+                  seed: int | None) -> None:
+    """Monte Carlo validation: run SCENARIO N times with sampled conditions; exit 1 on any
+    safety-invariant violation."""
+    import time
+
+    from overdrive.scenario import ScenarioError
+    from overdrive.sweep import default_jobs, sweep
+
+    out = out_dir or Path("runs") / f"sweep-{scenario.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+    try:
+        report = sweep(scenario, runs, jobs or default_jobs(), out, seed)
+    except (ScenarioError, OSError) as exc:
+        fail_usage(str(exc))
+        return
+    print_sweep(report, out)
+    raise SystemExit(EXIT_VIOLATION if report["violations"] else EXIT_OK)
+
+
+def print_sweep(report: dict, out: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"overdrive sweep: {report['scenario']}")
+    for column in ("figure", "min", "median", "p95", "max"):
+        table.add_column(column, justify="left" if column == "figure" else "right")
+    for key in ("authorization_margin_m", "max_decel_mps2", "max_accel_mps2",
+                "max_lateral_accel_mps2"):
+        stats = report[key]
+        if stats:
+            table.add_row(key, *(f"{stats[k]:.3f}" for k in ("min", "median", "p95", "max")))
+    Console().print(table)
+    for worst in report["worst"][:3]:
+        click.echo(f"worst: run {worst['run']} (seed {worst['seed']}), margin "
+                   f"{worst['authorization_margin_m']} m: {worst['replay']}")
+    click.echo(f"{report['violations']} violations in {report['runs']} runs")
+    click.echo(f"results: {out}")
+
+
 @main.command("move-server")
 @click.option("-s", "--simulate", is_flag=True,
               help="Simulation mode (seed 004): a seeded fake planner drives the simulated vehicle.")
@@ -109,6 +156,84 @@ def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_
     out = out_dir or default_out_dir(scenario)
     nodes = simulation_nodes(scenario.vehicle, seed, world=World())
     result = run_scenario(scenario, out, keep_trace=False, nodes=nodes)
+    if quiet:
+        click.echo(str(out))
+    else:
+        print_summary(result.summary, out)
+    raise SystemExit(result.exit_code)
+
+
+def _host_port(text: str, default_port: int, what: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        host, port = text, str(default_port)
+    if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        fail_usage(f"{what}: expected HOST or HOST:PORT with a port 0..65535, got {text!r}")
+    return host, int(port)
+
+
+@main.command("xgv-sim")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to bind.")
+@click.option("--port", type=click.IntRange(0, 65535), default=3794, show_default=True,
+              help="UDP port (JUDP 3794; 0 picks a free one).")
+@click.option("--scenario", type=click.Path(dir_okay=False, path_type=Path),
+              help="Vehicle, start, world and safety-device events to play (from the first "
+                   "datagram received).")
+@click.option("--duration-s", type=click.FloatRange(0.0, 86_400.0, min_open=True),
+              help="Stop after this long (default: run until interrupted).")
+def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | None) -> None:
+    """A simulated ByWire XGV speaking JAUS 3.3 over JUDP/UDP, in wall-clock time."""
+    from overdrive.scenario import ScenarioError, load_scenario
+    from overdrive.xgv_sim import XgvServer
+
+    loaded = None
+    if scenario is not None:
+        try:
+            loaded = load_scenario(scenario)
+        except ScenarioError as exc:
+            fail_usage(str(exc))
+    try:
+        server = XgvServer(host, port, loaded)
+    except OSError as exc:
+        fail_usage(f"cannot bind {host}:{port}: {exc.strerror or exc}")
+        return
+    with server:
+        bound = server.address
+        click.echo(f"xgv-sim: JAUS/JUDP on {bound[0]}:{bound[1]} (subsystem 1, node 1)", err=True)
+        try:
+            server.serve(duration_s)
+        except KeyboardInterrupt:
+            pass
+    click.echo(f"xgv-sim: {server.simulator.stats}", err=True)
+
+
+@main.command()
+@click.option("--xgv", "xgv", required=True, metavar="HOST[:PORT]",
+              help="The XGV's address (port 3794 by default).")
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--bind", default="0.0.0.0:0", show_default=True, metavar="HOST:PORT",
+              help="Local address; a real XGV answers on port 3794: use 0.0.0.0:3794.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Run folder (default runs/NAME-TIMESTAMP/).")
+@click.option("--quiet", is_flag=True, help="No summary table.")
+def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool) -> None:
+    """Run the control stack against a real or simulated XGV over JAUS, in wall-clock time."""
+    from overdrive.scenario import ScenarioError, load_scenario
+    from overdrive.sim import default_out_dir
+    from overdrive.xgv_link import run_drive
+
+    remote = _host_port(xgv, 3794, "--xgv")
+    local = _host_port(bind, 0, "--bind")
+    try:
+        loaded = load_scenario(scenario)
+        out = out_dir or default_out_dir(loaded)
+        result = run_drive(loaded, remote, out, bind=local)
+    except ScenarioError as exc:
+        fail_usage(str(exc))
+        return
+    except OSError as exc:
+        fail_usage(f"JAUS link to {remote[0]}:{remote[1]}: {exc.strerror or exc}")
+        return
     if quiet:
         click.echo(str(out))
     else:

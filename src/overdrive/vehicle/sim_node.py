@@ -90,6 +90,7 @@ class VehicleSim:
         self.last_readings: dict[str, Any] = {}
         self.rejected_sources = 0
         self.gate_interventions: dict[str, int] = {}
+        self.software_ready = True   # False: the XGV's control/ready-mode software pause (xgv.py)
         self.mode = safety_mode(self.devices)
 
     # ------------------------------------------------------------------ inputs
@@ -147,7 +148,7 @@ class VehicleSim:
         if reason and reason != "steer rate":
             self._count(reason)
 
-        self.mode = mode = safety_mode(self.devices)
+        self.mode = mode = safety_mode(self.devices, software_ready=self.software_ready)
         computer_steers, computer_speed = computer_axes(mode, self.devices.partial_mode)
         stopped = abs(plant.speed_mps) < STOPPED_MPS
         engine_on = self.engine_on
