@@ -6,6 +6,7 @@ Exit codes (contract): 0 ran and every expectation held; 1 ran and something was
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 
@@ -200,10 +201,8 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
     with server:
         bound = server.address
         click.echo(f"xgv-sim: JAUS/JUDP on {bound[0]}:{bound[1]} (subsystem 1, node 1)", err=True)
-        try:
+        with contextlib.suppress(KeyboardInterrupt):
             server.serve(duration_s)
-        except KeyboardInterrupt:
-            pass
     click.echo(f"xgv-sim: {server.simulator.stats}", err=True)
 
 
@@ -283,20 +282,17 @@ def print_summary(summary: dict, out: Path) -> None:
     click.echo(f"results: {out}")
 
 
-def _register_optional() -> None:
-    """Subcommands whose modules may be absent from a partial build."""
+def _register() -> None:
+    """Subcommands defined next to the code they drive."""
+    from overdrive.bus_cli import echo, launch, node, pub
+    from overdrive.jaus.cli import jaus
     from overdrive.obs_cli import COMMANDS
 
-    for command in COMMANDS:
+    for command in (*COMMANDS, jaus, node, launch, pub, echo):
         main.add_command(command)
-    try:
-        from overdrive.jaus.cli import jaus
-    except ImportError:
-        return
-    main.add_command(jaus)
 
 
-_register_optional()
+_register()
 
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -173,6 +173,129 @@ def _lateral_bound(a: float, g_along: float) -> float:
     return math.sqrt(1.0 - r * r) if r < 1.0 else 0.0
 
 
+class Braking:
+    """Braking in one ellipse, curve and slope: ``braking_distance_m``, ``stopping_distance_m``,
+    ``braking_speed_cap_mps`` and ``max_safe_speed_mps`` for those, at any speed or distance.
+
+    The speed-independent terms (load-scaled axes, gravity, the lateral bound, ``H(t0)``, the
+    speed cap) are computed once: ``max_safe_speed_mps``' Newton iteration evaluates only what
+    depends on the speed, and a node whose ellipse, curve and slope stay the same from one
+    period to the next can keep the object. Each term is the same expression as in a direct
+    computation, so results are bit-for-bit the functions' (which use this class).
+    """
+
+    __slots__ = ("_cap", "_h0", "a", "b", "bound", "c", "curvature_1pm", "feasible", "g_along",
+                 "s0")
+
+    def __init__(self, e: Ellipse, curvature_1pm: float = 0.0, grade_rad: float = 0.0,
+                 roll_rad: float = 0.0) -> None:
+        self.curvature_1pm = curvature_1pm
+        a, b = load_axes_mps2(e, grade_rad, roll_rad)
+        g_along = G_MPS2 * math.sin(grade_rad)
+        self.a, self.b, self.g_along = a, b, g_along
+        self.feasible = not (a <= 0.0 or b <= 0.0 or a + g_along <= 0.0)
+        self.c = G_MPS2 * math.sin(roll_rad)
+        if self.feasible:
+            self.s0 = -self.c / b
+            self.bound = _lateral_bound(a, g_along)
+        self._h0: float | None = None
+        self._cap: float | None = None
+
+    def distance_m(self, speed_mps: float) -> float:
+        """``braking_distance_m``."""
+        v = abs(speed_mps)
+        if v == 0.0:
+            return 0.0
+        if not self.feasible:
+            return math.inf
+        a, b, g_along, k = self.a, self.b, self.g_along, self.curvature_1pm
+        s0 = self.s0
+        s1 = (v * v * k - self.c) / b
+        bound = self.bound
+        worst = max(abs(s0), abs(s1))
+        if worst > bound or (g_along < 0.0 and (
+                worst >= bound or a * math.sqrt(1.0 - worst * worst) + g_along <= 0.0)):
+            return math.inf
+        if abs(s1 - s0) < _TINY_SPAN:
+            s_mid = 0.5 * (s0 + s1)
+            decel = a * math.sqrt(1.0 - s_mid * s_mid) + g_along
+            return v * v / (2.0 * decel)
+        if self._h0 is None:
+            self._h0 = _h(math.asin(s0), a, g_along)
+        t1 = math.asin(min(1.0, max(-1.0, s1)))
+        return b / (2.0 * k) * (_h(t1, a, g_along) - self._h0)
+
+    def stopping_distance_m(self, speed_mps: float, reaction_s: float = 0.0) -> float:
+        """``stopping_distance_m``."""
+        return abs(speed_mps) * reaction_s + self.distance_m(speed_mps)
+
+    def speed_cap_mps(self) -> float:
+        """``braking_speed_cap_mps``."""
+        if self._cap is None:
+            self._cap = self._speed_cap_mps()
+        return self._cap
+
+    def _speed_cap_mps(self) -> float:
+        if not self.feasible:
+            return 0.0
+        b, c, bound = self.b, self.c, self.bound
+        if abs(c) / b > bound:
+            return 0.0
+        if self.curvature_1pm == 0.0:
+            return math.inf
+        room = bound * b + (c if self.curvature_1pm > 0.0 else -c)
+        return math.sqrt(max(room, 0.0) / abs(self.curvature_1pm))
+
+    def max_safe_speed_mps(self, distance_m: float, reaction_s: float = 0.0) -> float:
+        """``max_safe_speed_mps``."""
+        if not distance_m > 0.0:
+            return 0.0
+        a, b, g_along, c = self.a, self.b, self.g_along, self.c
+        curvature_1pm = self.curvature_1pm
+        cap = self.speed_cap_mps()
+        if cap <= 0.0:
+            return 0.0
+        t_r = max(reaction_s, 0.0)
+        if curvature_1pm == 0.0:
+            decel = tyre_longitudinal_mps2(a, b, -c) + g_along
+            if decel <= 0.0:
+                return 0.0
+            if math.isinf(distance_m):
+                return math.inf
+            return -decel * t_r + math.sqrt((decel * t_r) ** 2 + 2.0 * decel * distance_m)
+        if math.isinf(distance_m):
+            return cap
+
+        braking_distance = self.distance_m
+
+        def excess(v: float) -> float:
+            return v * t_r + braking_distance(v) - distance_m
+
+        at_cap = excess(cap)
+        if at_cap <= 0.0:
+            return cap
+        best = a + g_along   # no curve, no roll: the largest deceleration anywhere
+        hi = min(cap, -best * t_r + math.sqrt((best * t_r) ** 2 + 2.0 * best * distance_m))
+        lo = 0.0
+        v = hi
+        tol_m = 1e-12 * distance_m + 1e-15
+        for _ in range(200):
+            f = excess(v)
+            if abs(f) <= tol_m:
+                return v
+            if f > 0.0:
+                hi = v
+            else:
+                lo = v
+            s = (v * v * curvature_1pm - c) / b
+            decel = a * math.sqrt(max(0.0, 1.0 - s * s)) + g_along
+            nxt = v - f / (t_r + v / decel) if decel > 0.0 and math.isfinite(f) else -1.0
+            v = nxt if lo < nxt < hi else 0.5 * (lo + hi)
+            if hi - lo <= 1e-15 * max(hi, 1.0):
+                break
+        return lo
+
+
 def braking_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0,
                        grade_rad: float = 0.0, roll_rad: float = 0.0) -> float:
     """Distance to stop from ``speed_mps`` using the whole ellipse, the curve held throughout.
@@ -183,27 +306,9 @@ def braking_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0,
     ``d = B' / (2 k) * (H(t1) - H(t0))`` (see ``_h``). Infinite when braking runs out on the
     way (downhill ``b <= 0``) or the curve does not fit in the ellipse at ``v``.
     """
-    v = abs(speed_mps)
-    if v == 0.0:
+    if speed_mps == 0.0:
         return 0.0
-    a, b = load_axes_mps2(e, grade_rad, roll_rad)
-    g_along = G_MPS2 * math.sin(grade_rad)
-    if a <= 0.0 or b <= 0.0 or a + g_along <= 0.0:
-        return math.inf
-    c = G_MPS2 * math.sin(roll_rad)
-    s0 = -c / b
-    s1 = (v * v * curvature_1pm - c) / b
-    bound = _lateral_bound(a, g_along)
-    worst = max(abs(s0), abs(s1))
-    if worst > bound or (g_along < 0.0 and (
-            worst >= bound or a * math.sqrt(1.0 - worst * worst) + g_along <= 0.0)):
-        return math.inf
-    if abs(s1 - s0) < _TINY_SPAN:
-        s_mid = 0.5 * (s0 + s1)
-        decel = a * math.sqrt(1.0 - s_mid * s_mid) + g_along
-        return v * v / (2.0 * decel)
-    t0, t1 = math.asin(s0), math.asin(min(1.0, max(-1.0, s1)))
-    return b / (2.0 * curvature_1pm) * (_h(t1, a, g_along) - _h(t0, a, g_along))
+    return Braking(e, curvature_1pm, grade_rad, roll_rad).distance_m(speed_mps)
 
 
 def stopping_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0,
@@ -217,18 +322,7 @@ def stopping_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0
 def braking_speed_cap_mps(e: Ellipse, curvature_1pm: float, grade_rad: float = 0.0,
                           roll_rad: float = 0.0) -> float:
     """Speed above which ``braking_distance_m`` is infinite (curve leaves the braking ellipse)."""
-    a, b = load_axes_mps2(e, grade_rad, roll_rad)
-    g_along = G_MPS2 * math.sin(grade_rad)
-    if a <= 0.0 or b <= 0.0 or a + g_along <= 0.0:
-        return 0.0
-    c = G_MPS2 * math.sin(roll_rad)
-    bound = _lateral_bound(a, g_along)
-    if abs(c) / b > bound:
-        return 0.0
-    if curvature_1pm == 0.0:
-        return math.inf
-    room = bound * b + (c if curvature_1pm > 0.0 else -c)
-    return math.sqrt(max(room, 0.0) / abs(curvature_1pm))
+    return Braking(e, curvature_1pm, grade_rad, roll_rad).speed_cap_mps()
 
 
 def max_safe_speed_mps(e: Ellipse, distance_m: float, curvature_1pm: float = 0.0,
@@ -242,49 +336,8 @@ def max_safe_speed_mps(e: Ellipse, distance_m: float, curvature_1pm: float = 0.0
     """
     if not distance_m > 0.0:
         return 0.0
-    a, b = load_axes_mps2(e, grade_rad, roll_rad)
-    g_along = G_MPS2 * math.sin(grade_rad)
-    cap = braking_speed_cap_mps(e, curvature_1pm, grade_rad, roll_rad)
-    if cap <= 0.0:
-        return 0.0
-    t_r = max(reaction_s, 0.0)
-    c = G_MPS2 * math.sin(roll_rad)
-    if curvature_1pm == 0.0:
-        decel = tyre_longitudinal_mps2(a, b, -c) + g_along
-        if decel <= 0.0:
-            return 0.0
-        if math.isinf(distance_m):
-            return math.inf
-        return -decel * t_r + math.sqrt((decel * t_r) ** 2 + 2.0 * decel * distance_m)
-    if math.isinf(distance_m):
-        return cap
-
-    def excess(v: float) -> float:
-        return v * t_r + braking_distance_m(e, v, curvature_1pm, grade_rad, roll_rad) - distance_m
-
-    at_cap = excess(cap)
-    if at_cap <= 0.0:
-        return cap
-    best = a + g_along   # no curve, no roll: the largest deceleration anywhere
-    hi = min(cap, -best * t_r + math.sqrt((best * t_r) ** 2 + 2.0 * best * distance_m))
-    lo = 0.0
-    v = hi
-    tol_m = 1e-12 * distance_m + 1e-15
-    for _ in range(200):
-        f = excess(v)
-        if abs(f) <= tol_m:
-            return v
-        if f > 0.0:
-            hi = v
-        else:
-            lo = v
-        s = (v * v * curvature_1pm - c) / b
-        decel = a * math.sqrt(max(0.0, 1.0 - s * s)) + g_along
-        nxt = v - f / (t_r + v / decel) if decel > 0.0 and math.isfinite(f) else -1.0
-        v = nxt if lo < nxt < hi else 0.5 * (lo + hi)
-        if hi - lo <= 1e-15 * max(hi, 1.0):
-            break
-    return lo
+    return Braking(e, curvature_1pm, grade_rad, roll_rad).max_safe_speed_mps(distance_m,
+                                                                             reaction_s)
 
 
 # --------------------------------------------------------------------------- traction control

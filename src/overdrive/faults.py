@@ -63,8 +63,11 @@ class ChannelFaults:
             for window in windows:
                 if window.open_at(self.now_s):
                     return self._apply(window, topic, msg)
-        held = self.reorder_slot.pop(topic, None)
-        return (msg,) if held is None else (msg, held)
+        if self.reorder_slot:   # a message held back for a swap: it goes out after this one
+            held = self.reorder_slot.pop(topic, None)
+            if held is not None:
+                return (msg, held)
+        return (msg,)
 
     def _apply(self, window: Window, topic: str, msg: Any) -> Sequence[Any]:
         self.counts[window.kind] += 1

@@ -118,11 +118,17 @@ FRAME_TRANSFORM_SCHEMA: dict[str, Any] = {
 
 def quaternion_from_euler(yaw_rad: float, pitch_rad: float, roll_rad: float) -> dict[str, float]:
     """Quaternion (x, y, z, w) of intrinsic Z-Y-X rotations (yaw about z up, then y, then x)."""
+    x, y, z, w = _quaternion(yaw_rad, pitch_rad, roll_rad)
+    return {"x": x, "y": y, "z": z, "w": w}
+
+
+def _quaternion(yaw_rad: float, pitch_rad: float,
+                roll_rad: float) -> tuple[float, float, float, float]:
     cy, sy = math.cos(yaw_rad / 2), math.sin(yaw_rad / 2)
     cp, sp = math.cos(pitch_rad / 2), math.sin(pitch_rad / 2)
     cr, sr = math.cos(roll_rad / 2), math.sin(roll_rad / 2)
-    return {"x": sr * cp * cy - cr * sp * sy, "y": cr * sp * cy + sr * cp * sy,
-            "z": cr * cp * sy - sr * sp * cy, "w": cr * cp * cy + sr * sp * sy}
+    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
 
 
 def pose_messages(truth: Any, log_time_ns: int) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -249,6 +255,54 @@ class _TaggedNode:
         return self.node.step(now_s, inbox)
 
 
+# The Foxglove pose and transform as Structs: the same JSON as ``pose_messages``' dicts (same
+# keys in the same order), encoded without building nested dicts for every tick.
+
+class _Stamp(msgspec.Struct):
+    sec: int
+    nsec: int
+
+
+class _Vector3(msgspec.Struct):
+    x: float
+    y: float
+    z: float
+
+
+class _Quaternion(msgspec.Struct):
+    x: float
+    y: float
+    z: float
+    w: float
+
+
+class _Pose(msgspec.Struct):
+    position: _Vector3
+    orientation: _Quaternion
+
+
+class _PoseInFrame(msgspec.Struct):
+    timestamp: _Stamp
+    frame_id: str
+    pose: _Pose
+
+
+class _FrameTransform(msgspec.Struct):
+    timestamp: _Stamp
+    parent_frame_id: str
+    child_frame_id: str
+    translation: _Vector3
+    rotation: _Quaternion
+
+
+def _pose_structs(truth: Any, log_time_ns: int) -> tuple[_PoseInFrame, _FrameTransform]:
+    stamp = _Stamp(log_time_ns // NS_PER_S, log_time_ns % NS_PER_S)
+    position = _Vector3(truth.x_m, truth.y_m, 0.0)
+    orientation = _Quaternion(*_quaternion(truth.heading_rad, -truth.pitch_rad, truth.roll_rad))
+    return (_PoseInFrame(stamp, MAP_FRAME, _Pose(position, orientation)),
+            _FrameTransform(stamp, MAP_FRAME, VEHICLE_FRAME, position, orientation))
+
+
 class McapRecorder:
     """Bus tap writing ``run.mcap``; usable as a context manager (``close`` finishes the file).
 
@@ -256,21 +310,23 @@ class McapRecorder:
     attached so ``overdrive replay`` can rebuild the stack. ``pose_topic``: the topic whose
     messages carry the vehicle pose (``x_m``, ``y_m``, ``heading_rad``, ``pitch_rad``,
     ``roll_rad``) for the Foxglove pose and transform; None disables them.
+
+    The file is written by ``overdrive.mcap_writer.McapWriter`` (the ``mcap`` package reads it).
     """
 
     def __init__(self, output: str | Path | IO[bytes], *, scenario: Any = None,
                  period_s: float = 0.01, metadata: dict[str, str] | None = None,
                  pose_topic: str | None = Topic.TRUTH, chunk_size: int = 1 << 20) -> None:
-        from mcap.writer import CompressionType, Writer
+        from overdrive.mcap_writer import McapWriter
 
         self._own = isinstance(output, (str, Path))
         self._stream: IO[bytes] = open(output, "wb") if self._own else output  # type: ignore[arg-type]  # noqa: SIM115
-        self._writer = Writer(self._stream, chunk_size=chunk_size,
-                              compression=CompressionType.ZSTD)
+        self._writer = McapWriter(self._stream, chunk_size=chunk_size)
         self._writer.start(profile=PROFILE, library=LIBRARY)
-        self._encoder = msgspec.json.Encoder()
+        self._encode = msgspec.json.Encoder().encode
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, type | str], int] = {}
+        self._bus_channels: dict[str, tuple[type, int]] = {}   # topic -> (type, channel) last used
         self._pose_topic = pose_topic
         self.period_s = period_s
         self.log_time_ns = 0
@@ -279,7 +335,8 @@ class McapRecorder:
         """Messages written per topic, derived channels included."""
         self._tagging = False
         self._publisher = ""
-        self._runs: list[list[Any]] = []     # [[publisher, count], ...] of the current tick
+        self._bus_messages = 0                      # bus messages observed so far
+        self._marks: list[tuple[str, int]] = [("", 0)]   # (publisher, _bus_messages at its start)
         self._closed = False
         info = {"schema_version": str(SCHEMA_VERSION), "overdrive_version": __version__,
                 "period_s": repr(period_s), "time": "simulated"}
@@ -315,15 +372,28 @@ class McapRecorder:
         """Node ``name`` is being stepped at ``now_s``: what it returns is published next."""
         self.set_time(now_s)
         self._publisher = name
+        self._marks.append((name, self._bus_messages))
 
     def _flush_tick(self) -> None:
-        if not self._runs:
+        """Write the tick's ``TickPublishers``: each publisher's run of consecutive messages."""
+        marks, end = self._marks, self._bus_messages
+        self._marks = [(self._publisher, end)]
+        publishers: list[str] = []
+        counts: list[int] = []
+        for i, (name, first) in enumerate(marks):
+            count = (marks[i + 1][1] if i + 1 < len(marks) else end) - first
+            if not count:
+                continue
+            if publishers and publishers[-1] == name:
+                counts[-1] += count
+            else:
+                publishers.append(name)
+                counts.append(count)
+        if not publishers or not self._tagging:
             return
         index = TickPublishers(tick=round(self.log_time_ns / (self.period_s * NS_PER_S)),
                                t_s=self.log_time_ns / NS_PER_S,
-                               publishers=[r[0] for r in self._runs],
-                               counts=[r[1] for r in self._runs])
-        self._runs = []
+                               publishers=publishers, counts=counts)
         self._write(PUBLISHERS_TOPIC, index, "overdrive")
 
     # ------------------------------------------------------------------ writing
@@ -349,31 +419,39 @@ class McapRecorder:
             channel_id = self._channel(topic, cls, type_name(cls), json_schema(cls), origin)
         t = self.log_time_ns if log_time_ns is None else log_time_ns
         self.sequence += 1
-        self._writer.add_message(channel_id, t, self._encoder.encode(msg), t, self.sequence)
+        self._writer.add_message(channel_id, t, self._encode(msg), t, self.sequence)
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
-    def _write_dict(self, topic: str, schema: dict[str, Any], msg: dict[str, Any], t: int) -> None:
+    def _write_derived(self, topic: str, schema: dict[str, Any], msg: Any, t: int) -> None:
         channel_id = self._channel(topic, schema["title"], schema["title"], schema, "derived")
         self.sequence += 1
-        self._writer.add_message(channel_id, t, self._encoder.encode(msg), t, self.sequence)
+        self._writer.add_message(channel_id, t, self._encode(msg), t, self.sequence)
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def observe(self, topic: str, msg: Any, log_time_ns: int | None = None) -> None:
         """Bus tap: write ``msg`` on channel ``topic`` (at ``log_time_ns``, else the set time)."""
         if self._closed:
             return
-        self._write(topic, msg, "bus", log_time_ns)
-        if self._tagging:
-            runs = self._runs
-            if runs and runs[-1][0] == self._publisher:
-                runs[-1][1] += 1
-            else:
-                runs.append([self._publisher, 1])
+        t = self.log_time_ns if log_time_ns is None else log_time_ns
+        # per-message fast path: the topic's channel when the type is the one last seen on it
+        cls = type(msg)
+        known = self._bus_channels.get(topic)
+        if known is not None and known[0] is cls:
+            channel_id = known[1]
+        else:
+            channel_id = self._channels.get((topic, cls))
+            if channel_id is None:
+                channel_id = self._channel(topic, cls, type_name(cls), json_schema(cls), "bus")
+            self._bus_channels[topic] = (cls, channel_id)
+        self.sequence += 1
+        self._writer.add_message(channel_id, t, self._encode(msg), t, self.sequence)
+        counts = self.counts
+        counts[topic] = counts.get(topic, 0) + 1
+        self._bus_messages += 1
         if topic == self._pose_topic:
-            t = self.log_time_ns if log_time_ns is None else log_time_ns
-            pose, tf = pose_messages(msg, t)
-            self._write_dict(POSE_TOPIC, POSE_IN_FRAME_SCHEMA, pose, t)
-            self._write_dict(TF_TOPIC, FRAME_TRANSFORM_SCHEMA, tf, t)
+            pose, tf = _pose_structs(msg, t)
+            self._write_derived(POSE_TOPIC, POSE_IN_FRAME_SCHEMA, pose, t)
+            self._write_derived(TF_TOPIC, FRAME_TRANSFORM_SCHEMA, tf, t)
 
     __call__ = observe
 

@@ -64,6 +64,14 @@ class Monitor:
         self.estop_disable_since: float | None = None
         self.stop_margins_m: list[float] = []   # authorization left each time the vehicle stopped
         self.moving = False
+        self._handlers = {Topic.TRUTH: self._truth, Topic.ADVANCE: self._authorization,
+                          Topic.PEDALS: self._pedals, Topic.STEER: self._steer,
+                          Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._set_speed,
+                          Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._estop_disable,
+                          WORLD_TOPIC: self._world}
+        # the ellipse's semi-axes before the friction scale (params are immutable)
+        self._ax_full_mps2 = max(params.max_decel_mps2, params.max_brake_decel_mps2)
+        self._ay_full_mps2 = params.skidpad_lat_g * G_MPS2
 
     # ------------------------------------------------------------------ helpers
 
@@ -82,37 +90,40 @@ class Monitor:
     # ------------------------------------------------------------------ bus tap
 
     def observe(self, topic: str, msg: Any) -> None:
-        if topic == Topic.TRUTH:
-            self._truth(msg)
-        elif topic == Topic.ADVANCE:
-            self._authorization(msg)
-        elif topic == Topic.PEDALS:
-            if msg.throttle_pct > 0.0 and msg.brake_pct > 0.0:
-                self._violate("throttle_while_braking",
-                              f"{msg.source} commanded throttle {msg.throttle_pct:.1f} % with brake "
-                              f"{msg.brake_pct:.1f} %")
-            if msg.source not in self.pedal_sources:
-                self.rejected_expected += 1
-            if msg.source == "speed":
-                self.estop_active = msg.throttle_pct == 0.0 and msg.brake_pct >= ESTOP_BRAKE_PCT
-                if self.estop_active and self.estop_at_s is None:
-                    self.estop_at_s = self.now_s
-        elif topic == Topic.STEER:
-            if msg.source not in self.steer_sources:
-                self.rejected_expected += 1
-        elif topic == Topic.POWERTRAIN:
-            if msg.source not in self.pedal_sources:
-                self.rejected_expected += 1
-        elif topic == Topic.SET_SPEED:
-            self.last_spss_s = self.now_s
-            self.estop_at_s = None
-        elif topic == Topic.NOTICE:
-            if msg.kind == "rejected" and msg.code == "no_control":
-                self.rejected_seen += 1
-        elif topic == Topic.VEHICLE_STATUS:
-            self._estop_disable(msg)
-        elif topic == WORLD_TOPIC:
-            self.friction = msg.friction
+        handler = self._handlers.get(topic)
+        if handler is not None:
+            handler(msg)
+
+    def _pedals(self, msg: Any) -> None:
+        if msg.throttle_pct > 0.0 and msg.brake_pct > 0.0:
+            self._violate("throttle_while_braking",
+                          f"{msg.source} commanded throttle {msg.throttle_pct:.1f} % with brake "
+                          f"{msg.brake_pct:.1f} %")
+        if msg.source not in self.pedal_sources:
+            self.rejected_expected += 1
+        if msg.source == "speed":
+            self.estop_active = msg.throttle_pct == 0.0 and msg.brake_pct >= ESTOP_BRAKE_PCT
+            if self.estop_active and self.estop_at_s is None:
+                self.estop_at_s = self.now_s
+
+    def _steer(self, msg: Any) -> None:
+        if msg.source not in self.steer_sources:
+            self.rejected_expected += 1
+
+    def _powertrain(self, msg: Any) -> None:
+        if msg.source not in self.pedal_sources:
+            self.rejected_expected += 1
+
+    def _set_speed(self, msg: Any) -> None:
+        self.last_spss_s = self.now_s
+        self.estop_at_s = None
+
+    def _notice(self, msg: Any) -> None:
+        if msg.kind == "rejected" and msg.code == "no_control":
+            self.rejected_seen += 1
+
+    def _world(self, msg: Any) -> None:
+        self.friction = msg.friction
 
     def _authorization(self, msg: Any) -> None:
         if not (math.isfinite(msg.distance_m) and msg.distance_m >= 0.0):
@@ -150,10 +161,9 @@ class Monitor:
     def _ellipse(self, truth: Any) -> None:
         if self.estop_active or abs(truth.speed_mps) < 0.05:
             return
-        p = self.params
         scale = min(self.friction / DRY_MU, 1.0)
-        ax_max = max(p.max_decel_mps2, p.max_brake_decel_mps2) * scale
-        ay_max = p.skidpad_lat_g * G_MPS2 * scale
+        ax_max = self._ax_full_mps2 * scale
+        ay_max = self._ay_full_mps2 * scale
         ax = truth.accel_mps2 + G_MPS2 * math.sin(truth.pitch_rad)   # tyre force, gravity removed
         ay = truth.lat_accel_mps2
         usage = math.hypot(ax / ax_max, ay / ay_max)

@@ -57,17 +57,18 @@ class LockstepRuntime:
 
     def step(self) -> float:
         """Run one tick; return its time."""
-        now_s = self.tick * self.period_s
-        self.bus.pump()
-        publish = self.bus.publish
+        tick = self.tick
+        now_s = tick * self.period_s
+        bus = self.bus
+        bus.pump()
+        publish_all = bus.publish_all
         for node, every, inbox in self._slots:
-            if self.tick % every:
+            if tick % every:
                 continue
             received = inbox[:]
             inbox.clear()
-            for topic, msg in node.step(now_s, received):
-                publish(topic, msg)
-        self.tick += 1
+            publish_all(node.step(now_s, received))
+        self.tick = tick + 1
         return now_s
 
     def run(self, duration_s: float, after_tick: Callable[[float], Any] | None = None) -> None:

@@ -76,6 +76,8 @@ def test_low_gear_hysteresis(name):
     assert wants_low_gear(p, True, leave, False, 0.0, cfg)          # stays in low up to exit
     assert not wants_low_gear(p, True, math.nextafter(leave, 99), False, 0.0, cfg)
     assert wants_low_gear(p, False, math.inf, True, 0.0, cfg)       # slippery
+    assert not wants_low_gear(p, False, 0.0, False, 0.0, cfg)       # a hold keeps the gear
+    assert wants_low_gear(p, True, 0.0, False, 0.0, cfg)
     steep = 0.5 * p.max_pitch_rad
     assert wants_low_gear(p, False, math.inf, False, -steep, cfg)   # steep, either way
     assert not wants_low_gear(p, False, math.inf, False, 0.99 * steep, cfg)

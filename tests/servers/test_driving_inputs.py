@@ -128,23 +128,25 @@ def test_bad_sensor_sample_is_ignored_and_noticed_once(params):
 
 # --------------------------------------------------------------------------- speed limits
 
-def test_lowest_live_limit_applies_and_lapses_after_ttl():
+def test_lowest_limit_applies_and_a_lapsed_source_holds_at_zero():
     limits = SpeedLimits(ttl_s=0.5)
-    assert limits.lowest_mps(0.0) == math.inf
+    assert limits.lowest_mps(0.0) == math.inf   # no source ever heard: no limit
     limits.update("map", 8.0, 0.0)
     limits.update("terrain", 5.0, 0.0)
     limits.update("planner", 6.0, 0.3)
     assert limits.lowest_mps(0.5) == 5.0
-    assert limits.lowest_mps(0.51) == 6.0       # map and terrain lapsed, planner live
+    assert limits.lowest_mps(0.51) == 0.0       # map and terrain went quiet: hold
     limits.update("terrain", 9.0, 0.6)          # a source replaces its own limit
+    limits.update("map", 7.0, 0.6)
     assert limits.lowest_mps(0.6) == 6.0
-    assert limits.lowest_mps(1.0) == 9.0
-    assert limits.lowest_mps(1.2) == math.inf   # all lapsed: the gear's limit applies
+    assert limits.lowest_mps(0.8) == 6.0
+    assert limits.lowest_mps(0.81) == 0.0       # planner went quiet
+    limits.update("planner", 9.5, 1.0)
+    assert limits.lowest_mps(1.0) == 7.0
 
 
-def test_goal_capped_by_lowest_limit_then_gear_after_expiry(params):
+def test_goal_capped_by_lowest_limit_and_held_when_a_source_goes_quiet(params):
     node = DrivingModule(params)
-    gear_cap = params.gear(params.drive_gear).max_speed_mps * 0.9
     t = 0.0
     out = step(node, t, (Topic.ADVANCE, AdvanceAuthorization(source="l", distance_m=1e5)),
                (Topic.MAX_SPEED, MaxSpeed(source="a", speed_mps=6.0)),
@@ -152,11 +154,11 @@ def test_goal_capped_by_lowest_limit_then_gear_after_expiry(params):
     assert status(out).speed_limit_mps == 3.0
     out = step(node, 0.4, (Topic.MAX_SPEED, MaxSpeed(source="a", speed_mps=6.0)))
     assert status(out).speed_limit_mps == 3.0
-    out = step(node, 0.6)
-    assert status(out).speed_limit_mps == 6.0
-    out = step(node, 1.0)
-    assert status(out).speed_limit_mps == pytest.approx(gear_cap)
-    assert status(out).goal_speed_mps == pytest.approx(gear_cap)
+    out = step(node, 0.6, (Topic.MAX_SPEED, MaxSpeed(source="a", speed_mps=6.0)))
+    assert status(out).speed_limit_mps == 0.0     # b went quiet
+    assert status(out).goal_speed_mps == 0.0
+    out = step(node, 0.7, (Topic.MAX_SPEED, MaxSpeed(source="b", speed_mps=4.0)))
+    assert status(out).speed_limit_mps == 4.0
 
 
 # --------------------------------------------------------------------------- authorizations
@@ -293,15 +295,19 @@ def test_steering_waits_for_the_speed_to_fit_the_curve(params):
     loop = IdealLoop(params)
     big = [(Topic.ADVANCE, AdvanceAuthorization(source="l", distance_m=1e4)),
            (Topic.MAX_SPEED, MaxSpeed(source="m", speed_mps=10.0))]
+    limit = [(Topic.MAX_SPEED, MaxSpeed(source="m", speed_mps=10.0))]   # refreshed, as sources do
     loop.run(0.2, {0: big})
-    while loop.speed_mps < 9.9:
-        loop.step()
+    for _ in range(6000):
+        if loop.speed_mps >= 9.9:
+            break
+        loop.step(limit)
+    assert loop.speed_mps >= 9.9, "reaches the limit within 60 s"
     e = ellipse_for(params, 0.8)
     k = 0.9 * params.max_curvature_1pm
     assert 10.0**2 * k > e.lat_mps2
-    loop.step([(Topic.STEERING, SteeringRequest(curvature_1pm=k))])
+    loop.step([(Topic.STEERING, SteeringRequest(curvature_1pm=k)), *limit])
     for _ in range(1000):
-        out = loop.step()
+        out = loop.step(limit)
         st = status(out)
         lat = loop.speed_mps**2 * st.curvature_1pm
         assert lat <= e.lat_mps2 * (1 + 1e-9)

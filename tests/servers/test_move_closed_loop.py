@@ -114,7 +114,7 @@ def test_obstacle_emergency_stop_then_resume(vehicle: str) -> None:
     assert run.summary["final"]["x_m"] - x_stop == pytest.approx(10.0, abs=0.3)
 
 
-@pytest.mark.parametrize("vehicle, fault_s", [("escape-hybrid", 10.5), ("ranger-6x6", 13.0)])
+@pytest.mark.parametrize("vehicle, fault_s", [("escape-hybrid", 5.4), ("ranger-6x6", 5.0)])
 def test_brake_fade_learned_and_stops_inside_authorizations(vehicle: str, fault_s: float) -> None:
     # the fault comes while cruising, about 1 s before the first stop starts braking
     events = [mv(0.5, 40.0, 8.0), {"at_s": fault_s, "actuator": {"brake": {"effectiveness": 0.6}}},

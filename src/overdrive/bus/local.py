@@ -8,7 +8,7 @@ subscribers, so no node knows about faults.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
 Envelope = tuple[str, Any]
@@ -49,13 +49,28 @@ class LocalBus:
             inbox.append(envelope)
 
     def publish(self, topic: str, msg: Any) -> None:
-        for tap in self._taps:
-            tap(topic, msg)
-        if self.channel is None:
-            self._deliver(topic, msg)
-            return
-        for routed in self.channel.route(topic, msg):
-            self._deliver(topic, routed)
+        self.publish_all(((topic, msg),))
+
+    def publish_all(self, outputs: Iterable[Envelope]) -> None:
+        """``publish`` each ``(topic, msg)`` in order (a node's outputs: one call per step)."""
+        taps = self._taps
+        subscribers = self._subscribers
+        channel = self.channel
+        for topic, msg in outputs:
+            for tap in taps:
+                tap(topic, msg)
+            inboxes = subscribers.get(topic)
+            if channel is None:
+                if inboxes:
+                    envelope = (topic, msg)
+                    for inbox in inboxes:
+                        inbox.append(envelope)
+                continue
+            for routed in channel.route(topic, msg):
+                if inboxes:
+                    envelope = (topic, routed)
+                    for inbox in inboxes:
+                        inbox.append(envelope)
 
     def pump(self) -> None:
         """Deliver held messages that are due; the runtime calls it at the start of each tick."""

@@ -62,7 +62,7 @@ class AdaptiveConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw
 class RatioEstimator:
     """Fast and slow exponential averages of a clamped ratio, weighted by excited time."""
 
-    __slots__ = ("config", "excited_s", "fast", "samples", "settled_s", "slow")
+    __slots__ = ("_value", "config", "excited_s", "fast", "samples", "settled_s", "slow")
 
     def __init__(self, config: AdaptiveConfig) -> None:
         self.config = config
@@ -71,6 +71,7 @@ class RatioEstimator:
         self.excited_s = 0.0     # total time with samples
         self.settled_s = 0.0     # excited time since fast and slow last disagreed
         self.samples = 0
+        self._value = self._conservative()
 
     def update(self, ratio: float, dt_s: float) -> None:
         if not math.isfinite(ratio) or dt_s <= 0.0:
@@ -86,12 +87,17 @@ class RatioEstimator:
             self.settled_s = 0.0
         else:
             self.settled_s += dt_s
+        self._value = self._conservative()
+
+    def _conservative(self) -> float:
+        lo, hi = self.config.estimate_bounds
+        return min(max(min(self.fast, self.slow), lo), hi)
 
     @property
     def value(self) -> float:
-        """The conservative estimate used for limits: ``min(fast, slow)`` within the bounds."""
-        lo, hi = self.config.estimate_bounds
-        return min(max(min(self.fast, self.slow), lo), hi)
+        """The conservative estimate used for limits: ``min(fast, slow)`` within the bounds
+        (read several times a period: kept from the last ``update``)."""
+        return self._value
 
     @property
     def uncertain(self) -> bool:

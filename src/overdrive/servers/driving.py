@@ -23,6 +23,7 @@ import msgspec
 from overdrive.control import rate_limit
 from overdrive.dynamics import (
     DEFAULT_ENVELOPE,
+    Braking,
     Ellipse,
     EnvelopeConfig,
     Longitudinal,
@@ -32,7 +33,6 @@ from overdrive.dynamics import (
     lateral_demand_mps2,
     lateral_speed_limit_mps,
     load_axes_mps2,
-    max_safe_speed_mps,
     tyre_longitudinal_mps2,
 )
 from overdrive.messages import (
@@ -49,7 +49,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
 )
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
 SOURCE = "driving"
 TIME_EPS_S = 1e-9   # slack when comparing simulated times built from integer ticks
@@ -101,19 +101,30 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
 # --------------------------------------------------------------------------- validation
 
 def _finite(*values: Any) -> bool:
-    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-               for v in values)
+    """Every value a finite real number (bools are not numbers here)."""
+    for v in values:
+        if type(v) is not float and (not isinstance(v, (int, float)) or isinstance(v, bool)):
+            return False
+        if not math.isfinite(v):
+            return False
+    return True
 
 
-def validate_steering(msg: Any, params: VehicleParams) -> str:
-    """Reason to reject a SteeringRequest, or "" to accept it."""
+def validate_steering(msg: Any, params: VehicleParams,
+                      max_curvature_1pm: float | None = None) -> str:
+    """Reason to reject a SteeringRequest, or "" to accept it.
+
+    ``max_curvature_1pm``: ``params.max_curvature_1pm`` when the caller has it (a property
+    computing a tangent on every call).
+    """
     if not isinstance(msg, SteeringRequest):
         return f"steering: not a SteeringRequest ({type(msg).__name__})"
     if not _finite(msg.curvature_1pm):
         return f"steering: curvature_1pm {msg.curvature_1pm} is not finite"
-    if abs(msg.curvature_1pm) > params.max_curvature_1pm:
+    max_k = params.max_curvature_1pm if max_curvature_1pm is None else max_curvature_1pm
+    if abs(msg.curvature_1pm) > max_k:
         return (f"steering: |curvature_1pm| {abs(msg.curvature_1pm):.6g} beyond the vehicle's "
-                f"{params.max_curvature_1pm:.6g}")
+                f"{max_k:.6g}")
     return ""
 
 
@@ -249,7 +260,13 @@ def stop_tail_m(speed_mps: float, grade_rad: float, tail_s: float) -> float:
 # --------------------------------------------------------------------------- inputs kept per source
 
 class SpeedLimits:
-    """Per-source speed limits; the lowest live one applies; each lapses after ``ttl_s``."""
+    """Per-source speed limits; the lowest applies.
+
+    A source that stops refreshing for more than ``ttl_s`` has gone quiet: its limit becomes 0
+    (hold) until it is heard again, so losing a limit source stops the vehicle rather than
+    lifting the limit (fail-safe; e.g. a dead move-server process). With no source ever heard,
+    there is no limit (``inf``: the gear's limit applies).
+    """
 
     def __init__(self, ttl_s: float) -> None:
         self.ttl_s = ttl_s
@@ -259,9 +276,13 @@ class SpeedLimits:
         self.by_source[source] = (speed_mps, now_s)
 
     def lowest_mps(self, now_s: float) -> float:
-        """Lowest live limit; ``inf`` when none is live (the gear's limit then applies)."""
-        live = [s for s, t in self.by_source.values() if now_s - t <= self.ttl_s + TIME_EPS_S]
-        return min(live, default=math.inf)
+        """Lowest limit, a lapsed source counting as 0; ``inf`` when no source was ever heard."""
+        lowest = math.inf
+        for speed_mps, received_s in self.by_source.values():
+            if now_s - received_s > self.ttl_s + TIME_EPS_S:
+                return 0.0
+            lowest = min(lowest, speed_mps)
+        return lowest
 
 
 class Authorizations:
@@ -275,9 +296,13 @@ class Authorizations:
 
     def remaining_m(self, reverse: bool, odometer_m: float) -> float:
         """Shortest remaining distance for the direction; NaN when no source authorized it."""
-        left = [max(0.0, d - (odometer_m - odo0))
-                for (_, rev), (d, odo0) in self.by_source.items() if rev == reverse]
-        return min(left) if left else math.nan
+        shortest: float | None = None
+        for (_, rev), (d, odo0) in self.by_source.items():
+            if rev == reverse:
+                left = max(0.0, d - (odometer_m - odo0))
+                if shortest is None or left < shortest:   # min(): the first of equals
+                    shortest = left
+        return math.nan if shortest is None else shortest
 
 
 # --------------------------------------------------------------------------- speed-server client
@@ -334,12 +359,19 @@ def client_request(target: str, server_state: str, server_gear: str, want_gear: 
 
 
 def wants_low_gear(params: VehicleParams, in_low: bool, limit_mps: float, slippery: bool,
-                   pitch_rad: float, config: DrivingConfig) -> bool:
-    """Low gear for a low limit, slippery or steep ground (seed 001), with hysteresis."""
-    low_max = params.gear(params.low_gear).max_speed_mps
+                   pitch_rad: float, config: DrivingConfig,
+                   low_gear_max_mps: float | None = None) -> bool:
+    """Low gear for a low limit, slippery or steep ground (seed 001), with hysteresis.
+
+    A limit of zero is a hold (stop and wait), not a speed regime: it keeps the current choice.
+    """
+    low_max = (params.gear(params.low_gear).max_speed_mps if low_gear_max_mps is None
+               else low_gear_max_mps)   # the node passes it: gear() is a search
     steep = config.steep_pitch_fraction * params.max_pitch_rad
     if slippery:
         return True
+    if limit_mps <= 0.0 and abs(pitch_rad) < steep:
+        return in_low
     if in_low:
         return (abs(pitch_rad) >= config.steep_exit_ratio * steep
                 or limit_mps <= min(config.low_gear_exit_fraction * low_max,
@@ -388,6 +420,22 @@ class DrivingModule:
         self.goal_mps = 0.0
         self._cut: float | None = None   # distance left when the terminal stop was commanded
         self._cut_direction = False
+        self.gears = GearTable(params)
+        self._low_gear_max_mps = params.gear(params.low_gear).max_speed_mps
+        self._max_curvature_1pm = params.max_curvature_1pm   # a property: tan() per call
+        self._steer_rate_1pmps = cfg.steer_rate_fraction * params.steer_rate_rps / params.wheelbase_m
+        self._gear_caps = {g.name: g.max_speed_mps * cfg.gear_speed_fraction if g.direction else 0.0
+                           for g in reversed(params.gears)}   # reversed: the first of a name wins
+        self._inputs = {Topic.STEERING: self._steering, Topic.MAX_SPEED: self._max_speed,
+                        Topic.ADVANCE: self._advance, Topic.DRIVE_MODE: self._drive_mode,
+                        Topic.GPS_INS: self._gps, Topic.SPEED_STATE: self._speed_state_input,
+                        Topic.VEHICLE_STATUS: self._vehicle_status}
+        # per-period values that only change with their inputs (see step)
+        self._ellipses: tuple[Any, ...] = ()       # (friction, shrink, ell, cap_ell, plan_ell)
+        self._lateral: tuple[Any, ...] = ()        # (cap_ell, k_req, k_cmd, grade, roll, v_lat)
+        self._safe_speeds: dict[tuple[float, ...], float] = {}   # see _safe_speed_mps
+        self._safe_plan: Ellipse | None = None                    # ... the ellipse they are for
+        self._brakings: dict[tuple[float, ...], Braking] = {}     # see _braking
 
     # ------------------------------------------------------------------ inputs
 
@@ -405,42 +453,52 @@ class DrivingModule:
         return False
 
     def _receive(self, now_s: float, topic: str, msg: Any, out: list) -> None:
-        if topic == Topic.STEERING:
-            reason = validate_steering(msg, self.params)
-            if reason:
-                self._reject("steering", reason, out)
-            else:
-                self.requested_1pm = float(msg.curvature_1pm)
-        elif topic == Topic.MAX_SPEED:
-            reason = validate_max_speed(msg)
-            if reason:
-                self._reject("max_speed", reason, out)
-            else:
-                self.limits.update(msg.source, float(msg.speed_mps), now_s)
-        elif topic == Topic.ADVANCE:
-            reason = validate_advance(msg)
-            if reason:
-                self._reject("advance", reason, out)
-            else:
-                self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m),
-                                           self.odometer_m)
-        elif topic == Topic.DRIVE_MODE:
-            reason = validate_drive_mode(msg)
-            if reason:
-                self._reject("drive_mode", reason, out)
-            else:
-                self.mode = msg
-        elif topic == Topic.GPS_INS:
-            if self._sensor(validate_gps(msg), out):
-                self.gps, self.gps_s = msg, now_s
-                self.odometer_m = msg.odometer_m
-        elif topic == Topic.SPEED_STATE:
-            if self._sensor(validate_speed_state(msg), out):
-                self.speed_state = msg
-                if msg.hint == "slipping":
-                    self._slip(now_s)
-        elif (topic == Topic.VEHICLE_STATUS and isinstance(msg, VehicleStatus)
-              and msg.traction_control is True):
+        handler = self._inputs.get(topic)
+        if handler is not None:
+            handler(now_s, msg, out)
+
+    def _steering(self, now_s: float, msg: Any, out: list) -> None:
+        reason = validate_steering(msg, self.params, self._max_curvature_1pm)
+        if reason:
+            self._reject("steering", reason, out)
+        else:
+            self.requested_1pm = float(msg.curvature_1pm)
+
+    def _max_speed(self, now_s: float, msg: Any, out: list) -> None:
+        reason = validate_max_speed(msg)
+        if reason:
+            self._reject("max_speed", reason, out)
+        else:
+            self.limits.update(msg.source, float(msg.speed_mps), now_s)
+
+    def _advance(self, now_s: float, msg: Any, out: list) -> None:
+        reason = validate_advance(msg)
+        if reason:
+            self._reject("advance", reason, out)
+        else:
+            self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m),
+                                       self.odometer_m)
+
+    def _drive_mode(self, now_s: float, msg: Any, out: list) -> None:
+        reason = validate_drive_mode(msg)
+        if reason:
+            self._reject("drive_mode", reason, out)
+        else:
+            self.mode = msg
+
+    def _gps(self, now_s: float, msg: Any, out: list) -> None:
+        if self._sensor(validate_gps(msg), out):
+            self.gps, self.gps_s = msg, now_s
+            self.odometer_m = msg.odometer_m
+
+    def _speed_state_input(self, now_s: float, msg: Any, out: list) -> None:
+        if self._sensor(validate_speed_state(msg), out):
+            self.speed_state = msg
+            if msg.hint == "slipping":
+                self._slip(now_s)
+
+    def _vehicle_status(self, now_s: float, msg: Any, out: list) -> None:
+        if isinstance(msg, VehicleStatus) and msg.traction_control is True:
             self._slip(now_s)
 
     def _slip(self, now_s: float) -> None:
@@ -451,8 +509,11 @@ class DrivingModule:
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         out: list[tuple[str, Any]] = []
+        inputs = self._inputs
         for topic, msg in inbox:
-            self._receive(now_s, topic, msg, out)
+            handler = inputs.get(topic)
+            if handler is not None:
+                handler(now_s, msg, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         p, cfg = self.params, self.config
@@ -466,7 +527,7 @@ class DrivingModule:
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         roll = self.gps.roll_rad if self.gps is not None else 0.0
         grade = -pitch if reverse else pitch
-        ell = ellipse_for(p, self.friction, cfg.envelope, self.traction.shrink(now_s))
+        ell, cap_ell, plan_ell = self._period_ellipses(self.traction.shrink(now_s))
         lon_axis, lat_axis = load_axes_mps2(ell, grade, roll)
         g_along = G_MPS2 * math.sin(grade)
 
@@ -487,14 +548,13 @@ class DrivingModule:
         gear_cap = self._gear_cap(driving_gear)
         speed_limit = min(source_limit, gear_cap)
 
-        curves = (self.requested_1pm, self.curvature_1pm)
-        cap_ell = Ellipse(lon_mps2=ell.lon_mps2, lat_mps2=ell.lat_mps2 * cfg.lateral_use_fraction)
-        v_lat = min(lateral_speed_limit_mps(cap_ell, k, grade, roll) for k in curves)
+        v_lat = self._lateral_limit_mps(cap_ell, grade, roll)
         v_auth = 0.0
         if self._cut_direction != reverse:
             self._cut, self._cut_direction = None, reverse
         if math.isfinite(remaining):
-            v_auth = self._authorized_speed(remaining - cfg.stop_margin_m, v, ell, grade, roll)
+            v_auth = self._authorized_speed(remaining - cfg.stop_margin_m, v, ell, grade, roll,
+                                            plan_ell)
         request = self._client(now_s, v)
         goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
         self.goal_mps = goal
@@ -517,11 +577,12 @@ class DrivingModule:
 
         # steering: rate- and jerk-limited, inside what the longitudinal command leaves
         lo, hi = curvature_bounds_1pm(ell, v, self.a_signed_mps2 + g_along, grade, roll)
-        rate_1pmps = cfg.steer_rate_fraction * p.steer_rate_rps / p.wheelbase_m
+        rate_1pmps = self._steer_rate_1pmps
         if v * v > 0.0:
             rate_1pmps = min(rate_1pmps, cfg.lat_jerk_mps3 / (v * v))
         k = limit_curvature(self.requested_1pm, self.curvature_1pm, lo, hi, rate_1pmps, dt_s)
-        self.curvature_1pm = min(max(k, -p.max_curvature_1pm), p.max_curvature_1pm)
+        max_k = self._max_curvature_1pm
+        self.curvature_1pm = min(max(k, -max_k), max_k)
 
         out.append((Topic.STEER, SteerCommand(steer_pct=steer_pct_for(self.curvature_1pm, p),
                                               source=SOURCE)))
@@ -533,33 +594,104 @@ class DrivingModule:
 
     # ------------------------------------------------------------------ helpers
 
+    def _period_ellipses(self, shrink: float) -> tuple[Ellipse, Ellipse, Ellipse]:
+        """The ellipse, its share for the curve speed cap and the braking plan's share.
+
+        They change only with the friction and the traction-control shrink: kept between periods.
+        """
+        cached = self._ellipses
+        if cached and cached[0] == self.friction and cached[1] == shrink:
+            return cached[2], cached[3], cached[4]
+        cfg = self.config
+        ell = ellipse_for(self.params, self.friction, cfg.envelope, shrink)
+        cap_ell = Ellipse(lon_mps2=ell.lon_mps2, lat_mps2=ell.lat_mps2 * cfg.lateral_use_fraction)
+        plan_ell = Ellipse(lon_mps2=ell.lon_mps2 * cfg.plan_decel_fraction, lat_mps2=ell.lat_mps2)
+        self._ellipses = (self.friction, shrink, ell, cap_ell, plan_ell)
+        return ell, cap_ell, plan_ell
+
+    def _lateral_limit_mps(self, cap_ell: Ellipse, grade: float, roll: float) -> float:
+        """Curve speed cap: the lower of the requested and the commanded curve's.
+
+        Its inputs rarely change (a straight or a steady curve on constant ground), so the last
+        result is kept; ``lateral_speed_limit_mps`` gives the same for +0.0 and -0.0 inputs.
+        """
+        k_req, k_cmd = self.requested_1pm, self.curvature_1pm
+        last = self._lateral
+        if (last and last[0] is cap_ell and last[1] == k_req and last[2] == k_cmd
+                and last[3] == grade and last[4] == roll):
+            return last[5]
+        v_lat = lateral_speed_limit_mps(cap_ell, k_req, grade, roll)
+        if k_cmd != k_req:
+            v_lat = min(v_lat, lateral_speed_limit_mps(cap_ell, k_cmd, grade, roll))
+        self._lateral = (cap_ell, k_req, k_cmd, grade, roll, v_lat)
+        return v_lat
+
     def _authorized_speed(self, distance_m: float, v: float, ell: Ellipse, grade: float,
-                          roll: float) -> float:
-        """Goal speed for ``distance_m`` left to the stop point (docs: terminal approach)."""
+                          roll: float, plan: Ellipse | None = None) -> float:
+        """Goal speed for ``distance_m`` left to the stop point (docs: terminal approach).
+
+        ``plan``: the braking plan's ellipse (``ell`` with ``plan_decel_fraction`` of its
+        longitudinal axis), when the caller has it.
+        """
         cfg = self.config
         if self._cut is not None:
             if distance_m <= self._cut + cfg.min_move_m:
                 return 0.0   # stopped at the end: wait for an authorization that reaches further
             self._cut = None
-        plan = Ellipse(lon_mps2=ell.lon_mps2 * cfg.plan_decel_fraction, lat_mps2=ell.lat_mps2)
-        curves = (self.requested_1pm, self.curvature_1pm)
-        creep = min(cfg.creep_speed_mps,
-                    *(max_safe_speed_mps(plan, distance_m, k, grade, roll, cfg.reaction_s)
-                      for k in curves))
+        if plan is None:
+            plan = Ellipse(lon_mps2=ell.lon_mps2 * cfg.plan_decel_fraction, lat_mps2=ell.lat_mps2)
         tail = stop_tail_m(v, grade, cfg.stop_tail_s)
         if distance_m <= cfg.min_move_m or (v <= cfg.cut_speed_mps and distance_m <= tail):
             self._cut = distance_m
             return 0.0
-        brake = min(max_safe_speed_mps(plan, distance_m - cfg.creep_zone_m, k, grade, roll,
-                                       cfg.reaction_s) for k in curves)
+        brake = self._safe_speed_mps(plan, distance_m - cfg.creep_zone_m, grade, roll)
+        if brake >= cfg.creep_speed_mps:
+            return brake   # the creep speed is at most creep_speed_mps: max(brake, creep) = brake
+        creep = min(cfg.creep_speed_mps, self._safe_speed_mps(plan, distance_m, grade, roll))
         return max(brake, creep)
 
+    def _safe_speed_mps(self, plan: Ellipse, distance_m: float, grade: float,
+                        roll: float) -> float:
+        """``max_safe_speed_mps`` in the tighter of the requested and the commanded curve.
+
+        The same curvature (the usual case) is computed once. Standing (waiting in runwait, or
+        at a stop), the inputs repeat every period: recent results are kept. A +0.0 and a -0.0
+        input give the same result, so keys that compare equal may share it.
+        """
+        reaction_s = self.config.reaction_s
+        k_req, k_cmd = self.requested_1pm, self.curvature_1pm
+        if plan is not self._safe_plan:
+            self._safe_plan = plan
+            self._safe_speeds.clear()
+            self._brakings.clear()
+        key = (distance_m, k_req, k_cmd, grade, roll)
+        v = self._safe_speeds.get(key)
+        if v is not None:
+            return v
+        v = self._braking(plan, k_req, grade, roll).max_safe_speed_mps(distance_m, reaction_s)
+        if k_cmd != k_req:
+            v = min(v, self._braking(plan, k_cmd, grade, roll).max_safe_speed_mps(distance_m,
+                                                                                   reaction_s))
+        if len(self._safe_speeds) >= 8:
+            self._safe_speeds.clear()
+        self._safe_speeds[key] = v
+        return v
+
+    def _braking(self, plan: Ellipse, k: float, grade: float, roll: float) -> Braking:
+        """``Braking`` in ``plan`` (``_safe_plan``) for a curve and slope, kept while they last."""
+        key = (k, grade, roll)
+        braking = self._brakings.get(key)
+        if braking is None:
+            if len(self._brakings) >= 8:
+                self._brakings.clear()
+            braking = self._brakings[key] = Braking(plan, k, grade, roll)
+        return braking
+
     def _gear_cap(self, gear_name: str) -> float:
-        p = self.params
-        if gear_name not in p.gear_names:
+        try:
+            return self._gear_caps.get(gear_name, 0.0)
+        except TypeError:   # unhashable: not a gear name
             return 0.0
-        gear = p.gear(gear_name)
-        return gear.max_speed_mps * self.config.gear_speed_fraction if gear.direction else 0.0
 
     def _plan_gear(self, now_s: float, v: float, source_limit: float, pitch: float,
                    remaining: float) -> None:
@@ -570,20 +702,22 @@ class DrivingModule:
             want = p.reverse_gear
         else:
             low = wants_low_gear(p, self.planned_gear == p.low_gear, source_limit, slippery,
-                                 pitch, cfg)
+                                 pitch, cfg, self._low_gear_max_mps)
             want = p.low_gear if low else p.drive_gear
         if want == self.planned_gear:
             self._wish = None
             return
-        current_dir = p.gear(self.planned_gear).direction
-        if p.gear(want).direction != current_dir:
+        current_dir = self.gears.direction(self.planned_gear)
+        if self.gears.direction(want) != current_dir:
             self.planned_gear = want   # a change of direction cannot wait; the client stops first
             self._wish = None
             return
         if self._wish is None or self._wish[0] != want:
             self._wish = (want, now_s)
         server = self.speed_state
-        state = server.state if server is not None else "parked"
+        if server is None:
+            return   # the speed server's state is unknown: no gear change can be judged free
+        state = server.state
         stopped = v < cfg.stopped_mps
         terrain = slippery or abs(pitch) >= cfg.steep_pitch_fraction * p.max_pitch_rad
         idle_time = not (remaining > cfg.stop_margin_m)   # no authorization left: waiting anyway

@@ -37,12 +37,12 @@ import msgspec
 
 from overdrive.dynamics import (
     DEFAULT_ENVELOPE,
+    Braking,
     Ellipse,
     EnvelopeConfig,
     ellipse_for,
     lateral_speed_limit_mps,
     max_safe_speed_mps,
-    stopping_distance_m,
 )
 from overdrive.messages import (
     AdvanceAuthorization,
@@ -66,7 +66,7 @@ from overdrive.messages import (
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, check_command, direction_of
-from overdrive.vehicle.presets import VehicleParams
+from overdrive.vehicle.presets import GearTable, VehicleParams
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
@@ -162,6 +162,7 @@ class MoveServer:
         if not (math.isfinite(cfg.friction) and cfg.friction > 0.0):
             raise ValueError(f"friction: must be a positive finite number, got {cfg.friction}")
         self.ellipse = ellipse_for(params, cfg.friction, cfg.envelope)
+        self.gears = GearTable(params)
         self.model = ActuatorModel(params, cfg.adaptive)
         self.monitor = ConditionMonitor(params, cfg.conditions)
         self.phase = "idle"
@@ -191,6 +192,13 @@ class MoveServer:
         self.limit_mps = 0.0
         self.remaining_m = 0.0
         self._sensor_rejection = ""
+        self._brake_ell_cache: tuple[float, Ellipse, Ellipse] | None = None
+        self._brakings: dict[tuple[float, ...], Braking] = {}   # see _braking
+        self._brakings_ell: Ellipse | None = None
+        self._brake_ell = self._brake_ellipse()    # _brake_ellipse() of the current period
+        self._lateral_key: tuple[Any, ...] | None = None   # last lateral_speed_limit_mps call
+        self._lateral_mps = math.inf
+        self._handlers: dict[type, Any] = {}   # message type -> _receive handler
 
     # ------------------------------------------------------------------ helpers
 
@@ -209,9 +217,7 @@ class MoveServer:
     def _server_direction(self) -> int:
         """Direction of the gear the speed server reports (0: none / not in run)."""
         ss = self.speed_state
-        if ss is None or ss.gear not in self.params.gear_names:
-            return 0
-        return self.params.gear(ss.gear).direction
+        return 0 if ss is None else self.gears.direction(ss.gear)
 
     def _ready(self, direction: str) -> bool:
         ss = self.speed_state
@@ -220,15 +226,18 @@ class MoveServer:
 
     def _vehicle_direction(self) -> int:
         status = self.status
-        if status is None or status.gear not in self.params.gear_names:
-            return 0
-        return self.params.gear(status.gear).direction
+        return 0 if status is None else self.gears.direction(status.gear)
 
     def _brake_ellipse(self) -> Ellipse:
         """The planning ellipse with its longitudinal axis no larger than the brakes now give."""
         e = self.ellipse
         brake = self.model.brake_decel_mps2 * (1.0 - self.config.envelope.derate)
-        return Ellipse(lon_mps2=min(e.lon_mps2, brake), lat_mps2=e.lat_mps2)
+        cached = self._brake_ell_cache
+        if cached is not None and cached[0] == brake and cached[1] is e:
+            return cached[2]   # the brake estimate rarely changes: the same ellipse
+        ell = Ellipse(lon_mps2=min(e.lon_mps2, brake), lat_mps2=e.lat_mps2)
+        self._brake_ell_cache = (brake, e, ell)
+        return ell
 
     def _grade_roll(self) -> tuple[float, float]:
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
@@ -246,41 +255,75 @@ class MoveServer:
                                              reason=reason)))
         return False
 
-    def _receive(self, now_s: float, topic: str, msg: Any, commands: list, out: list) -> None:
-        if topic == Topic.MOVE_COMMAND:
-            commands.append(msg)
-        elif isinstance(msg, GpsIns):
-            if self._finite_sensor(_finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad,
-                                           msg.roll_rad), "gps_ins: not finite", out):
-                self.gps, self.gps_s = msg, now_s
-        elif isinstance(msg, Imu):
-            if self._finite_sensor(_finite(msg.accel_x_mps2, msg.accel_z_mps2),
-                                   "imu: not finite", out):
-                self.imu = msg
-        elif isinstance(msg, Radar):
-            if self._finite_sensor(_finite(msg.range_m), "radar: range not finite", out):
-                self.radar = msg
-        elif isinstance(msg, VehicleStatus):
-            if self._finite_sensor(_finite(msg.steer_pct, msg.throttle_pct, msg.brake_pct),
-                                   "vehicle_status: not finite", out):
-                self.status = msg
-        elif isinstance(msg, WheelSpeed):
-            if self._finite_sensor(_finite(msg.speed_mps), "wheel_speed: not finite", out):
-                self.wheel_mps = msg.speed_mps
-        elif isinstance(msg, SpeedState):
-            self.speed_state = msg
-        elif isinstance(msg, DrivingStatus):
-            self.driving = msg
-        elif isinstance(msg, SteerCommand) and _finite(msg.steer_pct):
+    def _handler_for(self, cls: type) -> Any:
+        """The input handler for messages of type ``cls`` (the first base class it derives from):
+        ``step`` dispatches every input but MOVE commands by its type."""
+        for base, handler in ((GpsIns, self._gps), (Imu, self._imu), (Radar, self._radar),
+                              (VehicleStatus, self._status), (WheelSpeed, self._wheel),
+                              (SpeedState, self._speed_state), (DrivingStatus, self._driving),
+                              (SteerCommand, self._steer_cmd)):
+            if issubclass(cls, base):
+                return handler
+        return self._ignore
+
+    def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
+        if _finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
+            self.gps, self.gps_s = msg, now_s
+        else:
+            self._finite_sensor(False, "gps_ins: not finite", out)
+
+    def _imu(self, now_s: float, msg: Imu, out: list) -> None:
+        if _finite(msg.accel_x_mps2, msg.accel_z_mps2):
+            self.imu = msg
+        else:
+            self._finite_sensor(False, "imu: not finite", out)
+
+    def _radar(self, now_s: float, msg: Radar, out: list) -> None:
+        if _finite(msg.range_m):
+            self.radar = msg
+        else:
+            self._finite_sensor(False, "radar: range not finite", out)
+
+    def _status(self, now_s: float, msg: VehicleStatus, out: list) -> None:
+        if _finite(msg.steer_pct, msg.throttle_pct, msg.brake_pct):
+            self.status = msg
+        else:
+            self._finite_sensor(False, "vehicle_status: not finite", out)
+
+    def _wheel(self, now_s: float, msg: WheelSpeed, out: list) -> None:
+        if _finite(msg.speed_mps):
+            self.wheel_mps = msg.speed_mps
+        else:
+            self._finite_sensor(False, "wheel_speed: not finite", out)
+
+    def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
+        self.speed_state = msg
+
+    def _driving(self, now_s: float, msg: DrivingStatus, out: list) -> None:
+        self.driving = msg
+
+    def _steer_cmd(self, now_s: float, msg: SteerCommand, out: list) -> None:
+        if _finite(msg.steer_pct):
             self.steer_cmd_pct = msg.steer_pct
+
+    def _ignore(self, now_s: float, msg: Any, out: list) -> None:
+        pass
 
     # ------------------------------------------------------------------ step
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         out: list[tuple[str, Any]] = []
         commands: list[Any] = []
+        handlers = self._handlers
         for topic, msg in inbox:
-            self._receive(now_s, topic, msg, commands, out)
+            if topic == Topic.MOVE_COMMAND:
+                commands.append(msg)
+                continue
+            cls = type(msg)
+            handler = handlers.get(cls)
+            if handler is None:
+                handler = handlers[cls] = self._handler_for(cls)
+            handler(now_s, msg, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         cfg = self.config
@@ -294,6 +337,7 @@ class MoveServer:
             self.stopped_since_s = None
 
         self._learn(dt_s)
+        self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
             self._command(now_s, cmd, out)
 
@@ -337,7 +381,7 @@ class MoveServer:
             latched_estop=self.latched,
             radar_target=bool(radar is not None and radar.target),
             radar_range_m=radar.range_m if radar is not None else math.inf,
-            ellipse=self._brake_ellipse(), standstill_mps=cfg.standstill_mps,
+            ellipse=self._brake_ell, standstill_mps=cfg.standstill_mps,
             obstacle_margin_m=cfg.estop_margin_m)
 
     def _command(self, now_s: float, cmd: Any, out: list) -> None:
@@ -429,12 +473,14 @@ class MoveServer:
             return False
         grade = self.gps.pitch_rad if self.gps is not None else 0.0   # forward travel
         roll = self.gps.roll_rad if self.gps is not None else 0.0
-        ell = self._brake_ellipse()
+        ell = self._brake_ell
         k = self.driving.curvature_1pm if self.driving is not None else self.curvature_1pm
         speed = max(v, 0.0)
-        braking = stopping_distance_m(ell, speed, k, grade, roll, cfg.estop_reaction_s)
+        braking = self._braking(ell, k, grade, roll).stopping_distance_m(speed,
+                                                                          cfg.estop_reaction_s)
         if not math.isfinite(braking):
-            braking = stopping_distance_m(ell, speed, 0.0, grade, roll, cfg.estop_reaction_s)
+            braking = self._braking(ell, 0.0, grade, roll).stopping_distance_m(
+                speed, cfg.estop_reaction_s)
         reach = braking + cfg.estop_margin_m
         if radar.range_m >= reach:
             return False
@@ -447,6 +493,20 @@ class MoveServer:
                                          reason=self.estop_reason)))
         return True
 
+    def _braking(self, ell: Ellipse, k: float, grade: float, roll: float) -> Braking:
+        """``Braking`` for ``stopping_distance_m`` in ``ell``, kept while ellipse, curve and slope
+        stay the same (a +0.0 and a -0.0 input give the same distances)."""
+        if ell is not self._brakings_ell:
+            self._brakings_ell = ell
+            self._brakings.clear()
+        key = (k, grade, roll)
+        braking = self._brakings.get(key)
+        if braking is None:
+            if len(self._brakings) >= 8:
+                self._brakings.clear()
+            braking = self._brakings[key] = Braking(ell, k, grade, roll)
+        return braking
+
     def _limits(self, now_s: float, out: list) -> None:
         """Speed limit for the driving module: command, reductions, adaptive caps."""
         active = self.active
@@ -454,7 +514,12 @@ class MoveServer:
         maxspeed = active.command.maxspeed_mps if active is not None else 0.0
         grade, roll = self._grade_roll()
         k = self.curvature_1pm
-        v_lat = lateral_speed_limit_mps(self.ellipse, k, grade, roll)
+        # the command's curve and the slope change rarely; the ellipse never (exact for +-0.0 too)
+        key = (k, grade, roll)
+        if key != self._lateral_key:
+            self._lateral_key = key
+            self._lateral_mps = lateral_speed_limit_mps(self.ellipse, k, grade, roll)
+        v_lat = self._lateral_mps
         actuator_cap, why = self._actuator_cap(maxspeed, k, grade, roll)
         self.monitor.update(
             now_s, maxspeed_mps=maxspeed,
@@ -486,7 +551,7 @@ class MoveServer:
             v = maxspeed * math.sqrt(e_b)   # same stopping distance at the reduced deceleration
             cap = min(cap, v)
             reasons.append(f"brake at {e_b:.0%}: speed x {math.sqrt(e_b):.2f}")
-        brake_ell = self._brake_ellipse()
+        brake_ell = self._brake_ell
         if brake_ell.lon_mps2 < self.ellipse.lon_mps2:
             d = self.remaining_m - cfg.stop_margin_m
             v = max_safe_speed_mps(brake_ell, d, k, grade, roll, cfg.reaction_s)
@@ -533,7 +598,7 @@ class MoveServer:
                                               speed_mps=self.limit_mps if moving else 0.0)))
         out.append((Topic.STEERING, SteeringRequest(curvature_1pm=self.curvature_1pm)))
         reason = self.estop_reason if self.latched else "; ".join(
-            r.reason for r in self.monitor.active.values()) if moving else ""
+            [r.reason for r in self.monitor.active.values()]) if moving else ""
         out.append((Topic.MOVE_STATUS, MoveStatus(
             command_id=self.last_command_id, phase=self.phase,
             remaining_m=self.remaining_m if self.active is not None else 0.0,
@@ -546,8 +611,13 @@ class MoveServer:
 
 
 def _finite(*values: Any) -> bool:
-    return all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-               for v in values)
+    """Every value a finite real number (bools are not numbers here)."""
+    for v in values:
+        if type(v) is not float and (not isinstance(v, (int, float)) or isinstance(v, bool)):
+            return False
+        if not math.isfinite(v):
+            return False
+    return True
 
 
 __all__ = ["EVENTS", "PHASES", "TRANSITIONS", "MoveServer", "MoveServerConfig",

@@ -167,11 +167,13 @@ class ConditionMonitor:
             found["localization"] = Reduction("localization", 0.0,
                                               f"no GPS/INS for {gps_age_s:.2f} s")
 
-        self.started = [r for code, r in found.items() if code not in self.active]
+        self.started = [r for code, r in found.items() if code not in self.active] if found else []
         self.active = found
 
     def cap_mps(self) -> float:
-        return min((r.cap_mps for r in self.active.values()), default=math.inf)
+        if not self.active:
+            return math.inf
+        return min([r.cap_mps for r in self.active.values()])
 
 
 __all__ = ["ConditionConfig", "ConditionMonitor", "Reduction"]

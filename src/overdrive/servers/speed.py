@@ -60,7 +60,7 @@ from overdrive.servers.speed_table import (
     fault_message,
     next_state,
 )
-from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
+from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
 
 SOURCE = "speed"
 INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",
@@ -100,7 +100,10 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
 
 
 def _finite(*values: float) -> bool:
-    return all(math.isfinite(v) for v in values)
+    for v in values:  # noqa: SIM110 - a plain loop: no generator per sensor message
+        if not math.isfinite(v):
+            return False
+    return True
 
 
 class SpeedServer:
@@ -119,6 +122,11 @@ class SpeedServer:
             raise ValueError(f"initial_gear: {params.preset} has no gear {initial_gear!r}")
         self.params = params
         self.config = cfg = config or SpeedServerConfig()
+        self.gears = GearTable(params)
+        self._low_gear = self.gears.get(params.low_gear)
+        self._start_timeout_s = params.crank_time_s + cfg.start_timeout_margin_s
+        self._shift_timeout_s = params.shift_time_s + cfg.shift_timeout_margin_s
+        self._handlers: dict[type, Any] = {}   # message type -> _read_inputs handler
         self.neutral_gear = next(
             (g.name for g in params.gears if g.direction == 0 and not g.holds), params.park_gear)
         self.controller = LongitudinalController(params, cfg.gains or gains_for(params),
@@ -213,24 +221,46 @@ class SpeedServer:
     def _read_inputs(self, now_s: float, inbox: Sequence[tuple[str, Any]],
                      out: list) -> list[SetSpeed]:
         requests: list[SetSpeed] = []
+        handlers = self._handlers
         for topic, msg in inbox:
             if topic == Topic.SET_SPEED and isinstance(msg, SetSpeed):
                 requests.append(msg)
-            elif isinstance(msg, VehicleStatus):
-                if self._accept_input(_finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
-                                      "vehicle_status: rpm or pedal not finite", out):
-                    self.status, self.last_sensor_s = msg, now_s
-            elif isinstance(msg, GpsIns):
-                if self._accept_input(_finite(msg.speed_mps, msg.pitch_rad),
-                                      "gps_ins: speed or pitch not finite", out):
-                    self.gps, self.last_gps_s = msg, now_s
-            elif isinstance(msg, WheelSpeed):
-                if self._accept_input(_finite(msg.speed_mps), "wheel_speed: not finite", out):
-                    self.wheel_mps, self.last_wheel_s = msg.speed_mps, now_s
-            elif isinstance(msg, Imu) and self._accept_input(
-                    _finite(msg.accel_x_mps2), "imu: accel_x not finite", out):
-                self.imu, self.last_imu_s = msg, now_s
+                continue
+            cls = type(msg)
+            handler = handlers.get(cls)
+            if handler is None:
+                handler = handlers[cls] = self._handler_for(cls)
+            handler(now_s, msg, out)
         return requests
+
+    def _handler_for(self, cls: type) -> Any:
+        """The input handler for messages of type ``cls`` (the first base class it derives from)."""
+        for base, handler in ((VehicleStatus, self._status_input), (GpsIns, self._gps_input),
+                              (WheelSpeed, self._wheel_input), (Imu, self._imu_input)):
+            if issubclass(cls, base):
+                return handler
+        return self._ignore_input
+
+    def _status_input(self, now_s: float, msg: VehicleStatus, out: list) -> None:
+        if self._accept_input(_finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
+                              "vehicle_status: rpm or pedal not finite", out):
+            self.status, self.last_sensor_s = msg, now_s
+
+    def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
+        if self._accept_input(_finite(msg.speed_mps, msg.pitch_rad),
+                              "gps_ins: speed or pitch not finite", out):
+            self.gps, self.last_gps_s = msg, now_s
+
+    def _wheel_input(self, now_s: float, msg: WheelSpeed, out: list) -> None:
+        if self._accept_input(_finite(msg.speed_mps), "wheel_speed: not finite", out):
+            self.wheel_mps, self.last_wheel_s = msg.speed_mps, now_s
+
+    def _imu_input(self, now_s: float, msg: Imu, out: list) -> None:
+        if self._accept_input(_finite(msg.accel_x_mps2), "imu: accel_x not finite", out):
+            self.imu, self.last_imu_s = msg, now_s
+
+    def _ignore_input(self, now_s: float, msg: Any, out: list) -> None:
+        pass
 
     def _accept_input(self, ok: bool, reason: str, out: list) -> bool:
         """Reject a non-finite sensor message with a Notice (once per run of identical ones)."""
@@ -252,12 +282,13 @@ class SpeedServer:
         the IMU with gravity along the pitch removed, else from the speed's derivative."""
         cfg = self.config
         last_speed = self.speed_mps
-        if self.gps is not None and self._fresh(self.last_gps_s, now_s):
+        gps_fresh = self._fresh(self.last_gps_s, now_s)
+        wheel_fresh = self._fresh(self.last_wheel_s, now_s)
+        if self.gps is not None and gps_fresh:
             self.speed_mps = self.gps.speed_mps
-        elif self.wheel_mps is not None and self._fresh(self.last_wheel_s, now_s):
+        elif self.wheel_mps is not None and wheel_fresh:
             self.speed_mps = self.wheel_mps
-        self.speed_live = (self._fresh(self.last_gps_s, now_s)
-                           or self._fresh(self.last_wheel_s, now_s))
+        self.speed_live = gps_fresh or wheel_fresh
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         if self.imu is not None and self._fresh(self.last_imu_s, now_s):
             self.accel_mps2 = self.imu.accel_x_mps2 - G_MPS2 * math.sin(pitch)
@@ -329,12 +360,13 @@ class SpeedServer:
                 low="0 (exclusive)", high=cfg.max_request_accel_mps2)
         if spss.state not in REQUESTABLE:
             return FaultCode.BAD_STATE, fault_message(FaultCode.BAD_STATE, state=spss.state)
-        if spss.gear not in p.gear_names:
+        gear = self.gears.get(spss.gear)
+        if gear is None:
             return FaultCode.UNKNOWN_GEAR, fault_message(FaultCode.UNKNOWN_GEAR, preset=p.preset,
                                                          gear=spss.gear)
         if spss.state not in ("idle", "run"):
             return None   # seed 001: "Gear selection only matters for run" (and idle's shifts)
-        if spss.state == "run" and p.gear(spss.gear).direction == 0:
+        if spss.state == "run" and gear.direction == 0:
             return FaultCode.NO_DRIVE_GEAR, fault_message(FaultCode.NO_DRIVE_GEAR, gear=spss.gear)
         if self.state in ("runwait", "shifting", "run") and spss.gear != self.goal_gear:
             return FaultCode.GEAR_CHANGE_OUTSIDE_IDLE, fault_message(
@@ -394,12 +426,12 @@ class SpeedServer:
 
     def _conditions(self, now_s: float, client_fault_edge: bool, watchdog_edge: bool) -> Conditions:
         cfg = self.config
-        p = self.params
         status = self.status
         assert self.state_since_s is not None
         gear = status.gear if status is not None else self.gear_cmd
         if status is not None and status.engine == "cranking" and self.state == "starting":
             self.saw_cranking = True
+        gear_info = self.gears.get(gear)
         return Conditions(
             goal=self.goal, goal_gear=self.goal_gear,
             time_in_state_s=now_s - self.state_since_s + TIME_EPS_S,
@@ -407,12 +439,12 @@ class SpeedServer:
             latched=self.latched, client_fault_active=self.client_fault != 0,
             engine=status.engine if status is not None else "",
             saw_cranking=self.saw_cranking,
-            gear=gear, gear_neutral=gear in p.gear_names and p.gear(gear).direction == 0,
+            gear=gear, gear_neutral=gear_info is not None and gear_info.direction == 0,
             shifting=status.shifting if status is not None else False,
             stopped=self.stopped, shift_for_run=self.shift_for_run,
-            reset_s=cfg.reset_s, start_timeout_s=p.crank_time_s + cfg.start_timeout_margin_s,
+            reset_s=cfg.reset_s, start_timeout_s=self._start_timeout_s,
             start_retry_s=cfg.start_retry_s, pause_park_s=cfg.pause_park_s,
-            runwait_s=cfg.runwait_s, shift_timeout_s=p.shift_time_s + cfg.shift_timeout_margin_s,
+            runwait_s=cfg.runwait_s, shift_timeout_s=self._shift_timeout_s,
         )
 
     def _enter(self, now_s: float, new_state: str, event: str | None, out: list) -> None:
@@ -438,8 +470,13 @@ class SpeedServer:
             self.controller.reset(direction * self.speed_filt_mps,
                                   direction * self.accel_filt_mps2, self.pedals.brake_pct)
 
+    def _low_gear_top_mps(self) -> float:
+        low = self._low_gear
+        return (low if low is not None else self.params.gear(self.params.low_gear)).max_speed_mps
+
     def _gear(self) -> Gear:
-        return self.params.gear(self.gear_cmd)
+        gear = self.gears.get(self.gear_cmd)
+        return gear if gear is not None else self.params.gear(self.gear_cmd)   # raises KeyError
 
     # ------------------------------------------------------------------ outputs
 
@@ -456,8 +493,8 @@ class SpeedServer:
         engine_on = row.engine_on
         if state == "starting" and self.status is not None:
             # seed 001: starting "Must be in neutral": crank only out of gear
-            engine_on = p.gear(self.status.gear).direction == 0 if (
-                self.status.gear in p.gear_names) else False
+            status_gear = self.gears.get(self.status.gear)
+            engine_on = status_gear.direction == 0 if status_gear is not None else False
         powertrain = PowertrainCommand(gear=self.gear_cmd, engine_on=engine_on,
                                        horn=state == "runwait", park_brake=row.brakes_locked,
                                        source=SOURCE)
@@ -501,7 +538,7 @@ class SpeedServer:
             rpm_frac = (status.engine_rpm - p.idle_rpm) / max(p.redline_rpm - p.idle_rpm, 1.0)
             lugging = (gear.name == p.drive_gear and status.throttle_pct >= cfg.lugging_throttle_pct
                        and self.controller.v_ref_mps - gear.direction * ground > 0.5
-                       and abs(ground) < p.gear(p.low_gear).max_speed_mps * cfg.gear_cap_fraction)
+                       and abs(ground) < self._low_gear_top_mps() * cfg.gear_cap_fraction)
             if lugging:
                 if self.lug_since_s is None:
                     self.lug_since_s = now_s

@@ -33,7 +33,7 @@ import random
 
 import msgspec
 
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
 
 AIR_DENSITY_KGPM3 = 1.225      # ISA sea level
 STOPPED_MPS = 1e-3             # below this the vehicle is treated as at rest
@@ -75,7 +75,10 @@ class Plant:
     def __init__(self, params: VehicleParams, world: World, rng: random.Random,
                  engine_running: bool = False, gear: str | None = None) -> None:
         self.params = params
+        self.gears = GearTable(params)
         self.world = world
+        self._grade_world: World | None = None     # the world _grade_starts belong to
+        self._grade_starts: list[float] = []
         self.rng = rng
         self.faults = ActuatorFaults()
         self.x_m = 0.0
@@ -113,14 +116,27 @@ class Plant:
         p = self.params
         if self.engine != "running":
             return 0.0
-        gear = p.gear(self.gear)
+        gear = self._gear(self.gear)
         if gear.direction == 0 or gear.max_speed_mps <= 0.0 or self.shift_target is not None:
             return p.idle_rpm + (p.redline_rpm - p.idle_rpm) * 0.1 * self.throttle
         frac = min(abs(self.wheel_speed_mps) / gear.max_speed_mps, 1.0)
         return p.idle_rpm + (p.redline_rpm - p.idle_rpm) * frac
 
+    def _gear(self, name: str) -> Gear:
+        gear = self.gears.get(name)
+        return gear if gear is not None else self.params.gear(name)   # raises KeyError
+
+    def _grade_percent(self) -> float:
+        """``world.grade_percent_at(x_m)``, with the segment starts kept while the world is the same."""
+        world = self.world
+        if world is not self._grade_world:
+            self._grade_world = world
+            self._grade_starts = [seg[0] for seg in world.grade_segments]
+        i = bisect.bisect_right(self._grade_starts, self.x_m) - 1
+        return world.grade_segments[max(i, 0)][1]
+
     def _update_attitude(self) -> None:
-        road_pitch = math.atan(self.world.grade_percent_at(self.x_m) / 100.0)
+        road_pitch = math.atan(self._grade_percent() / 100.0)
         self.pitch_rad = road_pitch * math.cos(self.heading_rad)
         self.roll_rad = -road_pitch * math.sin(self.heading_rad)
 
@@ -149,10 +165,10 @@ class Plant:
             if self.shift_remaining_s <= 0.0:
                 self.gear = self.shift_target
                 self.shift_target = None
-        wanted = gear_cmd if gear_cmd in p.gear_names else self.gear
+        wanted = gear_cmd if self.gears.get(gear_cmd) is not None else self.gear
         self.shift_refused = False
         if wanted != self.gear and wanted != self.shift_target:
-            target = p.gear(wanted)
+            target = self._gear(wanted)
             moving = abs(self.speed_mps)
             if ((p.shift_only_stopped and moving > SHIFT_STOPPED_MPS)
                     or ((target.holds or target.direction < 0) and moving > PARK_REVERSE_MAX_MPS)):
@@ -208,7 +224,7 @@ class Plant:
         lat_n = m * v * v * abs(k)
         long_cap_n = math.sqrt(max(mu_n * mu_n - lat_n * lat_n, 0.0))
 
-        gear = p.gear(self.gear)
+        gear = self._gear(self.gear)
         direction = gear.direction
         drive_n = 0.0
         spin_mps = 0.0

@@ -9,6 +9,7 @@ Numbers come from manufacturer data where it exists; the rest are stated enginee
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import msgspec
 
@@ -93,6 +94,33 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     @property
     def gear_names(self) -> tuple[str, ...]:
         return tuple(g.name for g in self.gears)
+
+
+class GearTable:
+    """``VehicleParams.gear`` as a dict, for code that looks gears up every control period.
+
+    Params are frozen Structs (no cached attributes), and ``gear``/``gear_names`` search or
+    build a tuple on every call; a node builds this once in ``__init__``.
+    """
+
+    __slots__ = ("_by_name",)
+
+    def __init__(self, params: VehicleParams) -> None:
+        self._by_name: dict[str, Gear] = {}
+        for gear in params.gears:
+            self._by_name.setdefault(gear.name, gear)   # the first of a name, as ``gear`` finds
+
+    def get(self, name: Any) -> Gear | None:
+        """The gear ``params.gear(name)`` returns; None where it would raise (no such gear)."""
+        try:
+            return self._by_name.get(name)
+        except TypeError:   # unhashable: not a gear name
+            return None
+
+    def direction(self, name: Any) -> int:
+        """The gear's direction; 0 for a name that is not a gear."""
+        gear = self.get(name)
+        return gear.direction if gear is not None else 0
 
 
 MPH = 0.44704  # m/s per mph

@@ -38,6 +38,8 @@ from overdrive.vehicle.presets import G_MPS2, VehicleParams
 PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration" (seed 000); XGV default-like
 PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort
 DRIVER_BRAKE_PCT = 30.0      # simulated safety driver under manual override: firm, controlled stop
+COMMAND_TIMEOUT_S = 0.2     # seed 001's 200 ms SPSS budget, applied by the vehicle to pedal commands
+WATCHED_SOURCES = frozenset({"speed"})   # periodic controllers; one-shot scenario commands are not
 WORLD_TOPIC = "sim/world"    # scenario -> simulator: replace the World (obstacles moved, friction...)
 FAULTS_TOPIC = "sim/faults"  # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
 
@@ -70,7 +72,8 @@ class VehicleSim:
                      FAULTS_TOPIC)
 
     def __init__(self, params: VehicleParams, world: World, seed: int, *, ready: bool = False,
-                 limits: GateLimits | None = None) -> None:
+                 limits: GateLimits | None = None,
+                 command_timeout_s: float | None = COMMAND_TIMEOUT_S) -> None:
         self.params = params
         self.plant = Plant(params, world, random.Random(f"{seed}/engine"),
                            engine_running=ready, gear=params.drive_gear if ready else None)
@@ -86,10 +89,15 @@ class VehicleSim:
         self.engine_on = ready
         self.park_brake = not ready
         self.last_now_s: float | None = None
+        self.now_s = 0.0
         self.sensor_faults: dict[str, SensorFault] = {}
         self.last_readings: dict[str, Any] = {}
         self.rejected_sources = 0
         self.gate_interventions: dict[str, int] = {}
+        self.command_timeout_s = command_timeout_s
+        self.last_command_s: float | None = None
+        self.timed_out = False
+        self.command_timeouts = 0
         self.software_ready = True   # False: the XGV's control/ready-mode software pause (xgv.py)
         self.mode = safety_mode(self.devices)
 
@@ -101,6 +109,8 @@ class VehicleSim:
             if topic == Topic.PEDALS:
                 if msg.source in lim.pedal_sources:
                     self.throttle_pct, self.brake_pct = msg.throttle_pct, msg.brake_pct
+                    if msg.source in WATCHED_SOURCES:
+                        self.last_command_s = self.now_s
                 else:
                     self._reject(msg, out)
             elif topic == Topic.STEER:
@@ -136,7 +146,9 @@ class VehicleSim:
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         out: list[tuple[str, Any]] = []
+        self.now_s = now_s
         self._receive(inbox, out)
+        self._command_watchdog(now_s, out)
         dt_s = 0.0 if self.last_now_s is None else now_s - self.last_now_s
         self.last_now_s = now_s
         plant = self.plant
@@ -191,6 +203,23 @@ class VehicleSim:
                 result.append((topic, msgspec.structs.replace(msg, **noisy)))
             # dropout: nothing published
         return result
+
+    def _command_watchdog(self, now_s: float, out: list) -> None:
+        """A drive-by-wire vehicle must not hold the last throttle when its controller dies:
+        once a periodic controller has sent pedal commands, silence longer than the timeout
+        means throttle 0 and full brake (one ``estop`` notice) until commands resume."""
+        if self.command_timeout_s is None or self.last_command_s is None:
+            return
+        silent = now_s - self.last_command_s > self.command_timeout_s + 1e-9
+        if silent:
+            self.throttle_pct, self.brake_pct = 0.0, 100.0
+            if not self.timed_out:
+                self.command_timeouts += 1
+                out.append((Topic.NOTICE, Notice(
+                    kind="estop", source=self.name, code="command_timeout",
+                    reason=f"no pedal command for {now_s - self.last_command_s:.3f} s "
+                           f"(timeout {self.command_timeout_s} s): full brake")))
+        self.timed_out = silent
 
     def _count(self, reason: str) -> None:
         self.gate_interventions[reason] = self.gate_interventions.get(reason, 0) + 1

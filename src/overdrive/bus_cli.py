@@ -1,0 +1,339 @@
+"""``overdrive node``, ``launch``, ``pub`` and ``echo``: the stack as processes over Zenoh.
+
+Standalone click commands, registered on the main group with ``main.add_command(...)``; also
+runnable as ``python -m overdrive.bus_cli COMMAND`` (the launcher starts nodes that way).
+Endpoints are loopback-only unless ``--allow-remote``; see docs/multiprocess.md.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+import msgspec
+
+from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE
+
+EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
+NODE_CHOICES = ("move", "driving", "speed", "vehicle-sim", "xgv-client")
+PASSWORD_ENV = "OVERDRIVE_ZENOH_PASSWORD"
+CONNECT_WAIT_S = 5.0     # pub/echo retry this long for a launch that is still starting
+
+
+def _usage(message: str) -> None:
+    click.echo(f"error: {message}", err=True)
+    raise SystemExit(EXIT_USAGE)
+
+
+def _load(path: Path) -> Any:
+    from overdrive.scenario import ScenarioError, load_scenario, parse_scenario
+
+    try:
+        if path.suffix == ".json":   # the launcher hands nodes the validated spec as JSON
+            return parse_scenario(json.loads(path.read_text(encoding="utf-8")), str(path))
+        return load_scenario(path)
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, ScenarioError):
+            _usage(str(exc))
+        _usage(f"{path}: {exc}")
+
+
+def _zenoh_options(fn: Any) -> Any:
+    fn = click.option("--zenoh-config", "zenoh_config", type=click.Path(dir_okay=False, exists=True),
+                      help="JSON5 Zenoh config loaded first (TLS, auth, access control); "
+                           "endpoints and scouting are set by overdrive.")(fn)
+    fn = click.option("--user", help=f"Zenoh user name (password from ${PASSWORD_ENV}).")(fn)
+    fn = click.option("--allow-remote", is_flag=True,
+                      help="Allow endpoints outside 127.0.0.0/8.")(fn)
+    fn = click.option("--vehicle", default=DEFAULT_VEHICLE, show_default=True,
+                      help="Key prefix: overdrive/<vehicle>/<topic>.")(fn)
+    return fn
+
+
+@click.command()
+@click.argument("name", type=click.Choice(NODE_CHOICES))
+@click.option("--scenario", "scenario_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Build the node as this scenario needs it (vehicle, world, start state).")
+@click.option("--preset", default="escape-hybrid", show_default=True,
+              help="Vehicle preset when no --scenario is given.")
+@click.option("--start", type=click.Choice(["parked", "ready"]), default="parked", show_default=True,
+              help="Initial state when no --scenario is given.")
+@click.option("--listen", multiple=True, help="Endpoint to listen on, e.g. tcp/127.0.0.1:7448.")
+@click.option("--connect", multiple=True, help=f"Endpoint to dial, e.g. {DEFAULT_ENDPOINT} (repeat).")
+@click.option("--mode", type=click.Choice(["peer", "client"]), default="peer", show_default=True)
+@click.option("--wait-clock", is_flag=True, help="Wait for a launcher's clock and share its epoch.")
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write timing and bus statistics here (JSON) on exit.")
+@click.option("--duration-s", type=click.FloatRange(min=0.0, min_open=True),
+              help="Stop after this long (default: until SIGINT/SIGTERM).")
+@_zenoh_options
+def node(name: str, scenario_path: Path | None, preset: str, start: str, listen: tuple[str, ...],
+         connect: tuple[str, ...], mode: str, wait_clock: bool, report: Path | None,
+         duration_s: float | None, zenoh_config: str | None, user: str | None,
+         allow_remote: bool, vehicle: str) -> None:
+    """Run one server NAME in this process, on the wall clock, over Zenoh."""
+    from overdrive.launch import UNAVAILABLE, preset_scenario, run_node
+    from overdrive.scenario import ScenarioError
+
+    if name in UNAVAILABLE:
+        _usage(f"node {name}: {UNAVAILABLE[name]}")
+    if not listen and not connect:
+        _usage("give --listen and/or --connect (e.g. --connect tcp/127.0.0.1:7447)")
+    try:
+        scenario = _load(scenario_path) if scenario_path else preset_scenario(name, preset, start)
+        code = run_node(name, scenario, listen=listen, connect=connect, mode=mode, vehicle=vehicle,
+                        wait_clock=wait_clock, report_path=report, base_file=zenoh_config,
+                        user=user, password=os.environ.get(PASSWORD_ENV),
+                        allow_remote=allow_remote, duration_s=duration_s)
+    except ScenarioError as exc:
+        _usage(str(exc))
+        return
+    except ValueError as exc:           # bad endpoint
+        _usage(str(exc))
+        return
+    raise SystemExit(code)
+
+
+def _parse_action(text: str, what: str) -> tuple[float, str, str]:
+    name, _, at = text.partition("@")
+    try:
+        at_s = float(at)
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected NODE@SECONDS, e.g. move@12") from None
+    return at_s, what, name
+
+
+@click.command()
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
+              help="Run folder (default runs/NAME-TIMESTAMP/).")
+@click.option("--listen", default=DEFAULT_ENDPOINT, show_default=True,
+              help="The launcher's endpoint, where pub/echo connect.")
+@click.option("--restart", is_flag=True, help="Restart a node process that dies.")
+@click.option("--kill", "kills", multiple=True, metavar="NODE@T_S",
+              help="Fault injection: SIGKILL a node's process at scenario time T_S (repeat).")
+@click.option("--credentials", type=click.Path(dir_okay=False, exists=True),
+              help="user:password lines; each process authenticates as its node name.")
+@click.option("--no-plot", is_flag=True, help="Skip plot.png.")
+@click.option("--quiet", is_flag=True, help="Print only the run folder.")
+@_zenoh_options
+def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kills: tuple[str, ...],
+           credentials: str | None, no_plot: bool, quiet: bool, zenoh_config: str | None,
+           user: str | None, allow_remote: bool, vehicle: str) -> None:
+    """Run SCENARIO with every server in its own process, in wall-clock time."""
+    from overdrive.launch import Launch, check_launchable
+    from overdrive.scenario import ScenarioError
+    from overdrive.sim import default_out_dir
+
+    del user  # each process uses its node name
+    loaded = _load(scenario)
+    actions = [_parse_action(k, "kill") for k in kills]
+    out = out_dir or default_out_dir(loaded)
+    try:
+        check_launchable(loaded)
+        run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
+                     base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
+                     plot=not no_plot, node_log=True)
+    except (ScenarioError, ValueError) as exc:
+        _usage(str(exc))
+        return
+    interrupted = threading.Event()
+
+    def on_signal(_signum: int, _frame: Any) -> None:
+        interrupted.set()
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, on_signal)
+    try:
+        run.start()
+        if not quiet:
+            click.echo(f"launched {', '.join(run.names)} on {listen}; playing {loaded.name} "
+                       f"({loaded.spec.duration_s:g} s)", err=True)
+        result = run.run()
+    except KeyboardInterrupt:
+        click.echo("interrupted: stopping nodes", err=True)
+        raise SystemExit(130) from None
+    except RuntimeError as exc:
+        click.echo(f"error: {exc}", err=True)
+        raise SystemExit(EXIT_VIOLATION) from None
+    finally:
+        run.close()
+    if quiet:
+        click.echo(str(out))
+    else:
+        from overdrive.cli import print_summary
+
+        print_summary(result.summary, out)
+    raise SystemExit(result.exit_code)
+
+
+def _client(connect: tuple[str, ...], sender: str, vehicle: str, zenoh_config: str | None,
+            user: str | None, allow_remote: bool, wait_s: float = CONNECT_WAIT_S) -> Any:
+    """A client session to a running launch; retries for ``wait_s`` (it may be starting)."""
+    from overdrive.bus.zenoh_bus import open_bus
+    from overdrive.launch import stack_registry
+
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            return open_bus(sender=sender, mode="client", connect=connect or (DEFAULT_ENDPOINT,),
+                            vehicle=vehicle, registry=stack_registry(), base_file=zenoh_config,
+                            user=user, password=os.environ.get(PASSWORD_ENV),
+                            allow_remote=allow_remote, publishers=None)
+        except ValueError:
+            raise
+        except Exception:               # ZError: nothing listening yet
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
+
+
+@click.command()
+@click.argument("topic")
+@click.argument("data")
+@click.option("--type", "type_name", help="Message type (default: the topic's type).")
+@click.option("--as", "sender", default="cli", show_default=True,
+              help="Sender name in the envelope (the receivers' publisher policy applies).")
+@click.option("--count", type=click.IntRange(min=1), default=1, show_default=True)
+@click.option("--rate", "rate_hz", type=click.FloatRange(min=0.0, min_open=True), default=10.0,
+              show_default=True, help="Publications per second when --count > 1.")
+@click.option("--wait-s", type=click.FloatRange(min=0.0), default=3.0, show_default=True,
+              help="Wait this long for a subscriber before publishing.")
+@click.option("--connect", multiple=True, help=f"Endpoint (default {DEFAULT_ENDPOINT}).")
+@_zenoh_options
+def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, rate_hz: float,
+        wait_s: float, connect: tuple[str, ...], zenoh_config: str | None, user: str | None,
+        allow_remote: bool, vehicle: str) -> None:
+    """Publish DATA (a JSON object) on TOPIC, like ``ros2 topic pub``."""
+    from overdrive.bus.zenoh_bus import check_topic
+    from overdrive.launch import stack_registry
+
+    registry = stack_registry()
+    try:
+        check_topic(topic)
+        cls = registry.type_named(type_name) if type_name else registry.topic_types.get(topic)
+    except (ValueError, KeyError):
+        _usage(f"unknown topic or type: {topic!r} {type_name or ''}".rstrip())
+        return
+    if cls is None:
+        _usage(f"topic {topic!r} has no fixed type; give --type")
+        return
+    try:
+        msg = msgspec.json.decode(data.encode(), type=cls)
+    except (msgspec.DecodeError, msgspec.ValidationError) as exc:
+        _usage(f"DATA is not a valid {cls.__name__}: {exc}")
+        return
+    try:
+        bus = _client(connect, sender, vehicle, zenoh_config, user, allow_remote, wait_s=wait_s)
+    except Exception as exc:  # Zenoh raises ZError for refused links
+        click.echo(f"error: cannot connect: {exc}", err=True)
+        raise SystemExit(EXIT_VIOLATION) from None
+    try:
+        publisher = bus.session.declare_publisher(f"overdrive/{vehicle}/{topic}")
+        deadline = time.monotonic() + wait_s
+        while not publisher.matching_status and time.monotonic() < deadline:
+            time.sleep(0.01)
+        matched = publisher.matching_status
+        publisher.undeclare()
+        for i in range(count):
+            bus.publish(topic, msg)
+            if i + 1 < count:
+                time.sleep(1.0 / rate_hz)
+        time.sleep(0.05)   # let the last frame leave before the session closes
+    finally:
+        bus.close()
+    click.echo(f"published {count} x {cls.__name__} on {topic} as {sender!r}"
+               + ("" if matched else " (no subscriber was seen)"), err=True)
+
+
+@click.command()
+@click.argument("topic")
+@click.option("--count", type=click.IntRange(min=1), help="Exit after this many messages.")
+@click.option("--timeout-s", type=click.FloatRange(min=0.0, min_open=True),
+              help="Exit (code 1 if nothing came) after this long.")
+@click.option("--connect", multiple=True, help=f"Endpoint (default {DEFAULT_ENDPOINT}).")
+@_zenoh_options
+def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[str, ...],
+         zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
+    """Print messages on TOPIC as JSON lines, like ``ros2 topic echo`` (``**`` matches all)."""
+    from overdrive.bus.wire import WireError
+    from overdrive.bus.zenoh_bus import ALIVE
+
+    prefix = f"overdrive/{vehicle}/"
+    if not topic or "//" in topic or topic.startswith("/"):
+        _usage(f"invalid topic {topic!r}")
+    try:
+        bus = _client(connect, "echo", vehicle, zenoh_config, user, allow_remote,
+                      wait_s=timeout_s if timeout_s is not None else CONNECT_WAIT_S)
+    except Exception as exc:
+        click.echo(f"error: cannot connect: {exc}", err=True)
+        raise SystemExit(EXIT_VIOLATION) from None
+    lines: list[bytes] = []
+    lock = threading.Lock()
+    got = threading.Event()
+    bad = [0]
+
+    def on_sample(sample: Any) -> None:
+        key = str(sample.key_expr)
+        name = key[len(prefix):]
+        if name.startswith(ALIVE + "/"):
+            return
+        try:
+            sender, msg = bus.registry.decode(sample.payload.to_bytes(), name)
+        except WireError as exc:
+            with lock:
+                bad[0] += 1
+            click.echo(f"undecodable frame on {name}: {exc}", err=True)
+            return
+        line = msgspec.json.encode({"topic": name, "type": type(msg).__name__, "sender": sender,
+                                    "data": msg})
+        with lock:
+            lines.append(line)
+        got.set()
+
+    subscriber = bus.session.declare_subscriber(prefix + topic, on_sample)
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    printed = 0
+    out = sys.stdout
+    try:
+        while count is None or printed < count:
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                break
+            got.wait(0.1 if remaining is None else min(0.1, remaining))
+            with lock:
+                batch, lines[:] = lines[:], []
+                got.clear()
+            for line in batch:
+                if count is not None and printed >= count:
+                    break
+                out.write(line.decode() + "\n")
+                printed += 1
+            out.flush()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        subscriber.undeclare()
+        bus.close()
+    raise SystemExit(EXIT_OK if printed or timeout_s is None else EXIT_VIOLATION)
+
+
+@click.group()
+def _main() -> None:
+    """overdrive bus commands (node, launch, pub, echo)."""
+
+
+for _command in (node, launch, pub, echo):
+    _main.add_command(_command)
+
+__all__ = ["echo", "launch", "node", "pub"]
+
+if __name__ == "__main__":
+    _main()

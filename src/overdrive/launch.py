@@ -1,0 +1,601 @@
+"""Multi-process runs over Zenoh: one node per process, a launcher that supervises and records.
+
+``overdrive node NAME`` runs one server (``run_node``); ``overdrive launch SCENARIO`` (``Launch``)
+starts the nodes a scenario needs as processes on this machine, plays the scenario in wall-clock
+time from its own process, records the run from the bus and writes the same run folder as
+``overdrive sim``. See docs/multiprocess.md.
+
+Topology: Zenoh 1.x peers do not forward between other peers, and scouting is off, so the
+processes form an explicit full mesh on loopback. Each node listens on its own port and connects
+to the nodes before it in ``MESH_ORDER``; the launcher comes last, connects to every node, and
+listens on the public endpoint (default ``tcp/127.0.0.1:7447``) where ``overdrive pub``/``echo``
+attach as clients. The later process always dials the earlier one, so each link's listener is
+the side receiving commands and can authenticate the dialler (Zenoh user/password identifies
+the connecting side only).
+
+Time: the launcher publishes a ``LaunchClock`` (the run's epoch on CLOCK_MONOTONIC, which is one
+clock for every process on the machine) at 10 Hz. Nodes wait for it, then step on
+``now_s = monotonic() - epoch``: every process shares the scenario's time axis (sensor-fault
+windows, channel-fault windows and recorded events line up), and a restarted node rejoins on
+the same axis. Channel faults are applied by the process that publishes the faulted topic.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import msgspec
+
+from overdrive.bus.wire import Registry
+from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
+from overdrive.runtime import DEFAULT_PERIOD_S, Node
+from overdrive.runtime_wall import WallRuntime
+from overdrive.scenario import Scenario, ScenarioError, parse_scenario
+from overdrive.vehicle.plant import ActuatorFaults, World
+from overdrive.vehicle.sim_node import (
+    COMMAND_TIMEOUT_S,
+    WORLD_TOPIC,
+    EngineStall,
+    SensorFault,
+    VehicleSim,
+)
+
+CLOCK_TOPIC = "launch/clock"
+CLOCK_PERIOD_S = 0.1            # a (re)started node waits at most this long for the epoch
+START_LEAD_S = 0.3              # epoch this far ahead of the first clock message: all nodes start at t=0
+READY_TIMEOUT_S = 20.0          # nodes must be up (liveliness) within this
+STOP_GRACE_S = 5.0              # SIGTERM -> SIGKILL of the process group
+VEHICLE_COMMAND_TIMEOUT_S = COMMAND_TIMEOUT_S  # the vehicle brakes on pedal-command silence (VehicleSim)
+
+NODE_CLASSES = {             # CLI name -> node name (the bus sender) as built by sim.build_nodes
+    "vehicle-sim": "vehicle",
+    "speed": "speed",
+    "driving": "driving",
+    "move": "move",
+}
+UNAVAILABLE = {"xgv-client": "the XGV client (JAUS) is not available in this build yet (issue 9)"}
+MESH_ORDER = ("vehicle-sim", "speed", "driving", "move")
+"""Command receivers first: each process dials those before it (see module doc)."""
+
+_PULL_IN = {  # a minimal event that makes sim.build_nodes include the node, for --preset runs
+    "vehicle-sim": {"at_s": 0, "engine": "off"},
+    "speed": {"at_s": 0, "set_speed": {"speed_mps": 0, "accel_mps2": 1, "gear": "__park__",
+                                       "state": "paused"}},
+    "driving": {"at_s": 0, "max_speed": {"source": "cli", "speed_mps": 1}},
+    "move": {"at_s": 0, "stop": {}},
+}
+
+
+class LaunchClock(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """The run's epoch: ``now_s = CLOCK_MONOTONIC - epoch_monotonic_s`` in every process."""
+
+    epoch_monotonic_s: float
+    scenario: str
+    duration_s: float
+
+
+def stack_registry() -> Registry:
+    """Stack messages plus the simulator's control types and the launch clock."""
+    registry = Registry()
+    registry.register(World, WORLD_TOPIC)
+    for cls in (ActuatorFaults, SensorFault, EngineStall):
+        registry.register(cls)
+    registry.register(LaunchClock, CLOCK_TOPIC)
+    return registry
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now (bind to port 0)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# --------------------------------------------------------------------------- nodes
+
+def preset_scenario(cli_name: str, preset: str, start: str = "parked") -> Scenario:
+    """A stand-in scenario for running one node without a scenario file."""
+    from overdrive.vehicle.presets import PRESETS
+
+    event = json.loads(json.dumps(_PULL_IN[cli_name]))
+    if "set_speed" in event:
+        event["set_speed"]["gear"] = PRESETS[preset].park_gear if preset in PRESETS else "park"
+    return parse_scenario({"name": f"node-{cli_name}", "vehicle": preset, "start": start,
+                           "duration_s": 1, "events": [event]}, f"<node {cli_name}>")
+
+
+def scenario_node_names(scenario: Scenario) -> list[str]:
+    """The CLI names of the server processes ``scenario`` needs, in mesh order."""
+    from overdrive.sim import build_nodes
+
+    built = {n.name for n in build_nodes(scenario)}
+    return [cli for cli in MESH_ORDER if NODE_CLASSES[cli] in built]
+
+
+def build_node(cli_name: str, scenario: Scenario) -> Node:
+    """The node ``cli_name`` exactly as ``overdrive sim`` builds it for ``scenario``."""
+    if cli_name in UNAVAILABLE:
+        raise ScenarioError(scenario.source, "node", UNAVAILABLE[cli_name])
+    if cli_name not in NODE_CLASSES:
+        raise ScenarioError(scenario.source, "node", f"unknown node {cli_name!r}; one of "
+                            + ", ".join([*NODE_CLASSES, *UNAVAILABLE]))
+    from overdrive.sim import build_nodes
+
+    wanted = NODE_CLASSES[cli_name]
+    for node in build_nodes(scenario):
+        if node.name == wanted:
+            return node
+    raise ScenarioError(scenario.source, "events",
+                        f"this scenario does not use the {cli_name} node")
+
+
+# --------------------------------------------------------------------------- one node process
+
+def _channel_faults(scenario: Scenario) -> Any:
+    from overdrive.player import channel_faults
+
+    return channel_faults(scenario)
+
+
+def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
+                   stop: threading.Event | None = None) -> LaunchClock | None:
+    """Block until a ``LaunchClock`` arrives (None on timeout or ``stop``)."""
+    inbox = bus.subscribe([CLOCK_TOPIC])
+    deadline = math.inf if timeout_s is None else time.monotonic() + timeout_s
+    while time.monotonic() < deadline and not (stop and stop.is_set()):
+        for _topic, msg in inbox.drain():
+            if isinstance(msg, LaunchClock):
+                return msg
+        time.sleep(0.005)
+    return None
+
+
+def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
+             connect: Sequence[str] = (), mode: str = "peer", vehicle: str = DEFAULT_VEHICLE,
+             wait_clock: bool = False, report_path: Path | None = None,
+             base_file: str | Path | None = None, user: str | None = None,
+             password: str | None = None, allow_remote: bool = False,
+             duration_s: float | None = None) -> int:
+    """Run one node until SIGTERM/SIGINT (or ``duration_s``); write a JSON report. Returns 0."""
+    node = build_node(cli_name, scenario)
+    stop = threading.Event()
+    runtime_box: list[WallRuntime] = []
+
+    def on_signal(_signum: int, _frame: Any) -> None:
+        stop.set()
+        if runtime_box:
+            runtime_box[0].stop()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    bus = open_bus(sender=node.name, mode=mode, listen=listen, connect=connect, vehicle=vehicle,
+                   registry=stack_registry(), base_file=base_file, user=user, password=password,
+                   allow_remote=allow_remote)
+    faults = _channel_faults(scenario)
+    bus.channel = faults
+    runtime = WallRuntime([node], bus)
+    runtime_box.append(runtime)
+    bus.announce(node.name)
+    started = time.monotonic()
+    clock: LaunchClock | None = None
+    try:
+        if wait_clock:
+            clock = wait_for_clock(bus, stop=stop)
+            if clock is None:
+                return 0
+            runtime.start_s = clock.epoch_monotonic_s
+        if not stop.is_set():
+            runtime.run(duration_s, on_tick=lambda t: setattr(faults, "now_s", t))
+    finally:
+        report = {
+            "node": cli_name, "name": node.name, "pid": os.getpid(),
+            "uptime_s": round(time.monotonic() - started, 3),
+            "epoch_monotonic_s": clock.epoch_monotonic_s if clock else None,
+            "runtime": runtime.stats().get(node.name, {}),
+            "bus": bus.stats.as_dict(),
+            "channel_faults": {k: v for k, v in faults.counts.items() if v},
+        }
+        if isinstance(node, VehicleSim):
+            report["gate_interventions"] = dict(sorted(node.gate_interventions.items()))
+            report["command_timeouts"] = node.command_timeouts
+        if report_path is not None:    # before closing: a slow session close may be killed
+            report_path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = report_path.with_suffix(".tmp")
+            tmp.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+            tmp.replace(report_path)
+        bus.close()
+    return 0
+
+
+# --------------------------------------------------------------------------- the launcher
+
+def _die_with_parent() -> None:
+    """In the child: get SIGTERM when the launcher dies, even by SIGKILL (Linux)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+class _ClockNode:
+    """Launcher node: publishes the run's epoch every 100 ms and supervises the processes."""
+
+    name = "launch"
+    period_s = CLOCK_PERIOD_S
+    subscriptions: tuple[str, ...] = ()
+
+    def __init__(self, clock: LaunchClock, supervise: Callable[[float], None]) -> None:
+        self.clock, self.supervise = clock, supervise
+
+    def step(self, now_s: float, _inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        self.supervise(now_s)
+        return [(CLOCK_TOPIC, self.clock)]
+
+
+@dataclass
+class NodeProcess:
+    cli_name: str
+    listen: str
+    connect: list[str]
+    report: Path
+    popen: subprocess.Popen | None = None
+    starts: int = 0
+    exits: list[dict[str, Any]] = field(default_factory=list)
+    expected_exit: bool = False
+    restart_at_s: float | None = None
+    killed_at_stop: bool = False
+
+
+@dataclass
+class LaunchResult:
+    summary: dict[str, Any]
+    exit_code: int
+    out_dir: Path | None
+    reports: dict[str, dict[str, Any]]
+
+
+Action = tuple[float, str, str]
+"""``(at_s, "kill" | "term" | "restart", node)``: supervisor actions at scenario times."""
+
+
+class Launch:
+    """Start, supervise and stop a scenario's node processes; play and record the scenario."""
+
+    def __init__(self, scenario: Scenario, out_dir: str | Path | None = None, *,
+                 listen: str = DEFAULT_ENDPOINT, vehicle: str = DEFAULT_VEHICLE,
+                 python: str = sys.executable, restart: bool = False,
+                 restart_delay_s: float = 0.5, actions: Sequence[Action] = (),
+                 base_file: str | Path | None = None, credentials: str | Path | None = None,
+                 allow_remote: bool = False, plot: bool = True,
+                 node_log: bool = False) -> None:
+        self.scenario = scenario
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        self.listen, self.vehicle, self.python = listen, vehicle, python
+        self.restart, self.restart_delay_s = restart, restart_delay_s
+        self.actions = sorted(actions)
+        self.base_file, self.credentials, self.allow_remote = base_file, credentials, allow_remote
+        self.plot = plot
+        self.node_log = node_log
+        for _at, what, _name in self.actions:
+            if what not in ("kill", "term", "restart"):
+                raise ValueError(f"unknown action {what!r}")
+        check_launchable(scenario)
+        self.names = scenario_node_names(scenario)
+        for _at, _what, name in self.actions:
+            if name not in self.names:
+                raise ScenarioError(scenario.source, "node",
+                                    f"{name!r} is not a process of this run ({', '.join(self.names)})")
+        self._tmp: Any = None
+        work = self.out_dir if self.out_dir is not None else Path(self._tmpdir())
+        self.work_dir = work
+        self.procs: dict[str, NodeProcess] = {}
+        endpoints: list[str] = []
+        for cli in self.names:
+            endpoint = f"tcp/127.0.0.1:{free_port()}"
+            self.procs[cli] = NodeProcess(cli, endpoint, list(endpoints), work / "nodes" / f"{cli}.json")
+            endpoints.append(endpoint)
+        self.bus: ZenohBus | None = None
+        self.alive: dict[str, bool] = {}
+        self.events: list[dict[str, Any]] = []
+        self.violations: list[str] = []
+        self.now_s = 0.0
+        self.recorder: Any = None
+        """The run's Recorder while ``run`` plays (``on_tick`` may read ``recorder.latest``)."""
+        self._scenario_path: Path | None = None
+
+    def _tmpdir(self) -> str:
+        import tempfile
+
+        self._tmp = tempfile.TemporaryDirectory(prefix="overdrive-launch-")
+        return self._tmp.name
+
+    # ------------------------------------------------------------------ processes
+
+    def _credentials_for(self, name: str) -> str | None:
+        if self.credentials is None:
+            return None
+        for line in Path(self.credentials).read_text(encoding="utf-8").splitlines():
+            user, _, password = line.strip().partition(":")
+            if user == name:
+                return password
+        raise ValueError(f"{self.credentials}: no credentials for {name!r}")
+
+    def _spawn(self, proc: NodeProcess) -> None:
+        assert self._scenario_path is not None
+        cmd = [self.python, "-m", "overdrive.bus_cli", "node", proc.cli_name,
+               "--scenario", str(self._scenario_path), "--listen", proc.listen,
+               "--vehicle", self.vehicle, "--wait-clock", "--report", str(proc.report)]
+        for endpoint in proc.connect:
+            cmd += ["--connect", endpoint]
+        if self.base_file is not None:
+            cmd += ["--zenoh-config", str(self.base_file)]
+        if self.allow_remote:
+            cmd.append("--allow-remote")
+        env = dict(os.environ)
+        node_name = NODE_CLASSES[proc.cli_name]
+        password = self._credentials_for(node_name)
+        if password is not None:
+            cmd += ["--user", node_name]
+            env["OVERDRIVE_ZENOH_PASSWORD"] = password
+        with contextlib.suppress(FileNotFoundError):
+            proc.report.unlink()
+        with contextlib.ExitStack() as stack:
+            log: Any = subprocess.DEVNULL
+            if self.node_log:
+                log = stack.enter_context(open(self.work_dir / "nodes" / f"{proc.cli_name}.log", "ab"))
+            proc.popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
+                                          stderr=subprocess.STDOUT if self.node_log else None,
+                                          env=env, start_new_session=True,
+                                          preexec_fn=_die_with_parent)
+        proc.starts += 1
+        proc.expected_exit = False
+        proc.restart_at_s = None
+
+    def _event(self, kind: str, **fields: Any) -> None:
+        self.events.append({"t_s": round(self.now_s, 4), "kind": kind, **fields})
+
+    def signal_node(self, name: str, sig: int = signal.SIGKILL) -> None:
+        """Send ``sig`` to a node's process group (SIGKILL: the fault-injection kill)."""
+        popen = self.procs[name].popen
+        if popen is not None and popen.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(popen.pid, sig)
+            self._event("process_signal", node=name, signal=signal.Signals(sig).name.lower())
+
+    def restart_node(self, name: str) -> None:
+        proc = self.procs[name]
+        if proc.popen is not None and proc.popen.poll() is None:
+            self._stop_proc(proc)
+        self._spawn(proc)
+        self._event("process_restart", node=name, pid=proc.popen.pid if proc.popen else None)
+
+    def _supervise(self, now_s: float) -> None:
+        self.now_s = now_s
+        while self.actions and self.actions[0][0] <= now_s + 1e-9:
+            _at, what, name = self.actions.pop(0)
+            if what == "restart":
+                self.restart_node(name)
+            else:
+                self.signal_node(name, signal.SIGKILL if what == "kill" else signal.SIGTERM)
+        for name, proc in self.procs.items():
+            popen = proc.popen
+            if popen is not None and proc.restart_at_s is None:
+                code = popen.poll()
+                if code is not None:
+                    how = f"signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+                    proc.exits.append({"t_s": round(now_s, 4), "code": code})
+                    self._event("process_exit", node=name, code=code, reason=how)
+                    self.violations.append(f"process: {name} died ({how}) at t={now_s:.2f} s")
+                    proc.restart_at_s = now_s + self.restart_delay_s if self.restart else math.inf
+            if proc.restart_at_s is not None and now_s >= proc.restart_at_s:
+                self._spawn(proc)
+                self._event("process_restart", node=name, pid=proc.popen.pid if proc.popen else None)
+
+    def _stop_proc(self, proc: NodeProcess, sig: int = signal.SIGTERM) -> None:
+        popen = proc.popen
+        if popen is None:
+            return
+        proc.expected_exit = True
+        if popen.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(popen.pid, sig)
+        try:
+            popen.wait(STOP_GRACE_S)
+        except subprocess.TimeoutExpired:
+            proc.killed_at_stop = True
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(popen.pid, signal.SIGKILL)
+            popen.wait(STOP_GRACE_S)
+        with contextlib.suppress(ProcessLookupError):   # stragglers in the group
+            os.killpg(popen.pid, signal.SIGKILL)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self, ready_timeout_s: float = READY_TIMEOUT_S) -> None:
+        """Write the scenario for the nodes, spawn them, open the launcher's session, wait ready."""
+        (self.work_dir / "nodes").mkdir(parents=True, exist_ok=True)
+        self._scenario_path = self.work_dir / "nodes" / "scenario.json"
+        self._scenario_path.write_bytes(msgspec.json.encode(msgspec.to_builtins(self.scenario.spec)))
+        for proc in self.procs.values():
+            self._spawn(proc)
+        password = self._credentials_for("scenario")
+        self.bus = open_bus(
+            sender="scenario", listen=[self.listen] if self.listen else [],
+            connect=[p.listen for p in self.procs.values()], vehicle=self.vehicle,
+            registry=stack_registry(), base_file=self.base_file,
+            user="scenario" if password is not None else None, password=password,
+            allow_remote=self.allow_remote)
+        lock = threading.Lock()
+        alive: set[str] = set()
+        changed = threading.Event()
+
+        def on_alive(name: str, up: bool) -> None:
+            with lock:
+                (alive.add if up else alive.discard)(name)
+            changed.set()
+
+        self.bus.watch_alive(on_alive)
+        wanted = {NODE_CLASSES[n] for n in self.names}
+        deadline = time.monotonic() + ready_timeout_s
+        while True:
+            with lock:
+                missing = wanted - alive
+            if not missing:
+                return
+            for proc in self.procs.values():
+                if proc.popen is not None and proc.popen.poll() is not None:
+                    raise RuntimeError(f"node {proc.cli_name} exited during start-up "
+                                       f"(code {proc.popen.returncode})")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"nodes not up after {ready_timeout_s} s: {', '.join(sorted(missing))}")
+            changed.wait(0.05)
+            changed.clear()
+
+    def run(self, on_tick: Callable[[float], None] | None = None) -> LaunchResult:
+        """Play the scenario in wall-clock time, stop the nodes, write the run folder."""
+        from overdrive.monitor import Monitor
+        from overdrive.player import ScenarioPlayer, world_from_spec
+        from overdrive.recorder import Recorder
+        from overdrive.sim import make_summary
+
+        assert self.bus is not None, "call start() first"
+        scenario, spec = self.scenario, self.scenario.spec
+        faults = _channel_faults(scenario)
+        self.bus.channel = faults
+        out_path = self.out_dir
+        with contextlib.ExitStack() as stack:
+            trace_file = None
+            if out_path is not None:
+                out_path.mkdir(parents=True, exist_ok=True)
+                trace_file = stack.enter_context(
+                    open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
+            recorder = self.recorder = Recorder(trace_file, keep_rows=False)
+            monitor = Monitor(scenario.vehicle, spec.world.friction, DEFAULT_PERIOD_S)
+            self.bus.tap(recorder.observe)
+            self.bus.tap(monitor.observe)
+            epoch = time.monotonic() + START_LEAD_S
+            clock = LaunchClock(epoch_monotonic_s=epoch, scenario=scenario.name,
+                                duration_s=spec.duration_s)
+            self.bus.publish(CLOCK_TOPIC, clock)
+            player = ScenarioPlayer(scenario)
+            runtime = WallRuntime([player, _ClockNode(clock, self._supervise)], self.bus)
+            runtime.start_s = epoch
+
+            def before(now_s: float) -> None:
+                faults.now_s = recorder.now_s = monitor.now_s = now_s
+                if on_tick is not None:
+                    on_tick(now_s)
+
+            def after(node: Node, now_s: float) -> None:
+                if node is player:
+                    recorder.tick(now_s)
+                    monitor.tick(now_s)
+
+            wall_start = time.monotonic()
+            runtime.run(spec.duration_s, on_tick=before, after_step=after)
+            wall_time_s = max(time.monotonic() - wall_start, 1e-9)
+            self._supervise(runtime.now_s)
+            reports = self.stop()
+        stand_in = VehicleSim(scenario.vehicle, world_from_spec(spec.world), spec.seed)
+        stand_in.gate_interventions = dict(reports.get("vehicle-sim", {}).get("gate_interventions", {}))
+        channel_counts = dict(faults.counts)
+        for report in reports.values():
+            for kind, n in report.get("channel_faults", {}).items():
+                channel_counts[kind] = channel_counts.get(kind, 0) + n
+        recorder.events.extend(self.events)
+        recorder.events.sort(key=lambda e: e["t_s"])
+        summary = make_summary(scenario, recorder, spec.duration_s, wall_time_s, [stand_in],
+                               monitor.finish(), channel_counts)
+        summary["violations"].extend(self.violations)
+        if hasattr(monitor, "stop_margins_m"):      # as overdrive sim reports it
+            summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
+        summary["launch"] = {
+            "mode": "multi-process (zenoh, wall clock)",
+            "endpoint": self.listen,
+            "processes": {name: {"listen": p.listen, "starts": p.starts, "exits": p.exits,
+                                 "killed_at_stop": p.killed_at_stop,
+                                 "report": name in reports}
+                          for name, p in self.procs.items()},
+            "launcher": {"runtime": runtime.stats(), "bus": self.bus.stats.as_dict()},
+            "nodes": reports,
+        }
+        self.close()
+        exit_code = 1 if summary["violations"] else 0
+        if out_path is not None:
+            (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
+                                                   encoding="utf-8")
+            if self.plot:
+                from overdrive.plot import plot_run
+
+                plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
+        return LaunchResult(summary, exit_code, out_path, reports)
+
+    def stop(self) -> dict[str, dict[str, Any]]:
+        """Stop every node (SIGTERM, then SIGKILL) and collect their reports."""
+        procs = list(self.procs.values())
+        for proc in procs:
+            proc.expected_exit = True
+            if proc.popen is not None and proc.popen.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.popen.pid, signal.SIGTERM)
+        for proc in procs:
+            self._stop_proc(proc)
+        reports: dict[str, dict[str, Any]] = {}
+        for name, proc in self.procs.items():
+            with contextlib.suppress(FileNotFoundError, json.JSONDecodeError):
+                reports[name] = json.loads(proc.report.read_text(encoding="utf-8"))
+        return reports
+
+    def close(self) -> None:
+        """Kill anything left and close the session; safe to call more than once."""
+        for proc in self.procs.values():
+            if proc.popen is not None and proc.popen.returncode is None:
+                self._stop_proc(proc, signal.SIGKILL)
+        if self.bus is not None:
+            self.bus.close()
+            self.bus = None
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    def __enter__(self) -> Launch:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+
+def launch_scenario(scenario: Scenario, out_dir: str | Path | None = None, **kwargs: Any) -> LaunchResult:
+    """Start, run and tear down a multi-process run of ``scenario``."""
+    launch = Launch(scenario, out_dir, **kwargs)
+    try:
+        launch.start()
+        return launch.run()
+    finally:
+        launch.close()
+
+
+def check_launchable(scenario: Scenario) -> None:
+    """Raise ScenarioError for what a multi-process run cannot do yet."""
+    if scenario.spec.interface != "embedded":
+        raise ScenarioError(scenario.source, "interface",
+                            "overdrive launch runs the simulated vehicle; 'jaus' needs the XGV client")
+
+
+__all__ = ["CLOCK_TOPIC", "MESH_ORDER", "NODE_CLASSES", "Launch", "LaunchClock", "LaunchResult",
+           "build_node", "launch_scenario", "run_node",
+           "scenario_node_names", "stack_registry"]

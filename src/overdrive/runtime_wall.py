@@ -1,0 +1,234 @@
+"""Wall-clock runtime: steps nodes at their rates on the monotonic clock, in one thread.
+
+The same nodes as the lock-step runtime (``step(now_s, inbox) -> outputs``); only this runtime
+reads the clock. ``now_s`` is ``clock() - start``: seconds since the runtime started, so node
+watchdogs measure wall time. Each node has an absolute schedule (``start + k * period_s``, no
+drift); the rate keeper sleeps until shortly before a deadline and spins the rest, because
+``time.sleep`` overshoots by 50-100 us on Linux. A node more than one period behind skips the
+missed steps (it runs once, late, and the schedule re-anchors) rather than bursting.
+
+Lag: the mean period over a sliding window of steps is compared with ``period_s``; more than
+``lag_threshold`` (2 %) slow is reported once as a ``Notice(kind="lag")`` on ``events``, and
+again only after it has recovered (mean back under half the threshold).
+
+Inboxes come from the bus: a ``SafeInbox`` (filled from Zenoh threads) is drained atomically;
+a plain list (``LocalBus``) is copied and cleared. A bus with ``pump()`` (taps, queued notices)
+is pumped on this thread before each round of steps.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from overdrive.messages import Notice, Topic
+from overdrive.runtime import Node
+
+LAG_WINDOW_STEPS = 100     # 1 s at 100 Hz: long enough to average scheduler jitter out
+LAG_THRESHOLD = 0.02       # issue 8: report when the mean period is more than 2 % slow
+SPIN_S = 0.0005            # busy-wait the last 0.5 ms (sleep overshoot ~0.05-0.1 ms, 2-core host)
+LATENESS_SAMPLES = 100_000  # lateness kept for percentiles (1000 s at 100 Hz)
+
+
+class LagMonitor:
+    """Sliding-window mean of a node's step period; flags when it runs ``threshold`` slow."""
+
+    def __init__(self, period_s: float, window: int = LAG_WINDOW_STEPS,
+                 threshold: float = LAG_THRESHOLD) -> None:
+        self.period_s = period_s
+        self.threshold = threshold
+        self.window = window
+        self._intervals: deque[float] = deque(maxlen=window)
+        self._sum_s = 0.0
+        self._last_s: float | None = None
+        self.lagging = False
+        self.lag_reports = 0
+        self.worst_mean_period_s = 0.0
+
+    @property
+    def mean_period_s(self) -> float:
+        return self._sum_s / len(self._intervals) if self._intervals else math.nan
+
+    def observe(self, start_s: float) -> bool:
+        """Record a step started at ``start_s``; True when the node has just started lagging."""
+        last, self._last_s = self._last_s, start_s
+        if last is None:
+            return False
+        if len(self._intervals) == self.window:
+            self._sum_s -= self._intervals[0]
+        interval = start_s - last
+        self._intervals.append(interval)
+        self._sum_s += interval
+        if len(self._intervals) < self.window:
+            return False
+        mean = self._sum_s / self.window
+        self.worst_mean_period_s = max(self.worst_mean_period_s, mean)
+        if not self.lagging and mean > self.period_s * (1.0 + self.threshold):
+            self.lagging = True
+            self.lag_reports += 1
+            return True
+        if self.lagging and mean < self.period_s * (1.0 + self.threshold / 2.0):
+            self.lagging = False
+        return False
+
+
+@dataclass
+class NodeStats:
+    """Timing of one node under the wall-clock runtime."""
+
+    name: str
+    period_s: float
+    steps: int = 0
+    skipped: int = 0                      # scheduled steps dropped because the node fell behind
+    max_step_s: float = 0.0               # longest time spent inside step()
+    lateness_s: deque[float] = field(default_factory=lambda: deque(maxlen=LATENESS_SAMPLES))
+
+    def report(self, monitor: LagMonitor) -> dict[str, Any]:
+        late = sorted(self.lateness_s)
+
+        def pct(q: float) -> float:
+            return round(late[min(len(late) - 1, int(q * len(late)))] * 1e3, 4) if late else 0.0
+
+        return {
+            "period_s": self.period_s, "steps": self.steps, "skipped": self.skipped,
+            "lateness_median_ms": round(statistics.median(late) * 1e3, 4) if late else 0.0,
+            "lateness_p99_ms": pct(0.99), "lateness_max_ms": round(late[-1] * 1e3, 4) if late else 0.0,
+            "max_step_ms": round(self.max_step_s * 1e3, 4),
+            "mean_period_ms": round(monitor.mean_period_s * 1e3, 4)
+            if not math.isnan(monitor.mean_period_s) else None,
+            "worst_mean_period_ms": round(monitor.worst_mean_period_s * 1e3, 4),
+            "lag_reports": monitor.lag_reports,
+        }
+
+
+class _Slot:
+    __slots__ = ("due_s", "inbox", "k", "monitor", "node", "stats")
+
+    def __init__(self, node: Node, inbox: Any, due_s: float, window: int, threshold: float) -> None:
+        self.node, self.inbox, self.due_s = node, inbox, due_s
+        self.k = 0                      # step index: due_s = start + k * period_s, no float drift
+        self.monitor = LagMonitor(node.period_s, window, threshold)
+        self.stats = NodeStats(node.name, node.period_s)
+
+
+def _drain(inbox: Any) -> list[tuple[str, Any]]:
+    drain = getattr(inbox, "drain", None)
+    if drain is not None:
+        return drain()
+    received = inbox[:]
+    inbox.clear()
+    return received
+
+
+class WallRuntime:
+    """Steps ``nodes`` on the wall clock until ``stop()`` or ``duration_s`` (see module doc)."""
+
+    def __init__(self, nodes: Sequence[Node], bus: Any, *,
+                 clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep, spin_s: float = SPIN_S,
+                 lag_window: int = LAG_WINDOW_STEPS, lag_threshold: float = LAG_THRESHOLD) -> None:
+        for node in nodes:
+            if not node.period_s > 0:
+                raise ValueError(f"node {node.name}: period_s must be positive")
+        self.bus = bus
+        self.clock, self.sleep, self.spin_s = clock, sleep, spin_s
+        self._slots = [_Slot(n, bus.subscribe(n.subscriptions), 0.0, lag_window, lag_threshold)
+                       for n in nodes]
+        self.start_s: float | None = None
+        self._stop = False
+        self.lag_notices: list[Notice] = []
+
+    def stop(self) -> None:
+        """Ask ``run`` to return after the current step (safe from a signal handler)."""
+        self._stop = True
+
+    @property
+    def now_s(self) -> float:
+        return 0.0 if self.start_s is None else self.clock() - self.start_s
+
+    def stats(self) -> dict[str, dict[str, Any]]:
+        return {s.node.name: s.stats.report(s.monitor) for s in self._slots}
+
+    def _wait_until(self, deadline_s: float) -> None:
+        clock = self.clock
+        remaining = deadline_s - clock()
+        if remaining > self.spin_s:
+            self.sleep(remaining - self.spin_s)
+        while clock() < deadline_s and not self._stop:
+            pass
+
+    def run(self, duration_s: float | None = None,
+            on_tick: Callable[[float], Any] | None = None,
+            after_step: Callable[[Node, float], Any] | None = None) -> None:
+        """Step nodes until ``stop()`` or until ``now_s`` passes ``duration_s``.
+
+        Time zero is ``start_s`` if set before (a shared epoch, possibly in the future or the
+        past: a late starter joins on the same schedule), else the moment ``run`` is called.
+        ``on_tick(now_s)`` is called before each round of steps, ``after_step(node, now_s)``
+        after each node step, both on this thread.
+        """
+        clock = self.clock
+        now = clock()
+        if self.start_s is None:
+            self.start_s = now
+        start = self.start_s
+        end = math.inf if duration_s is None else start + duration_s
+        pump = getattr(self.bus, "pump", None)
+        publish = self.bus.publish
+        slots = self._slots
+        for slot in slots:
+            period = slot.node.period_s
+            slot.k = 0 if now <= start else math.ceil((now - start) / period - 1e-9)
+            slot.due_s = start + slot.k * period
+        while not self._stop:
+            due = min(s.due_s for s in slots)
+            if due > end + 1e-9:
+                break
+            self._wait_until(due)
+            if self._stop:
+                break
+            if on_tick is not None:
+                on_tick(due - start)
+            if pump is not None:
+                pump()
+            for slot in slots:
+                if slot.due_s > due + 1e-9:
+                    continue
+                t = clock()
+                node, stats = slot.node, slot.stats
+                stats.lateness_s.append(t - slot.due_s)
+                now_s = t - start
+                outputs = node.step(now_s, _drain(slot.inbox))
+                for topic, msg in outputs:
+                    publish(topic, msg)
+                if slot.monitor.observe(t):
+                    self._report_lag(slot, now_s)
+                stats.steps += 1
+                stats.max_step_s = max(stats.max_step_s, clock() - t)
+                if after_step is not None:
+                    after_step(node, now_s)
+                slot.k += 1
+                slot.due_s = start + slot.k * node.period_s
+                behind = clock() - slot.due_s
+                if behind > node.period_s:
+                    missed = int(behind // node.period_s)
+                    stats.skipped += missed
+                    slot.k += missed
+                    slot.due_s = start + slot.k * node.period_s
+
+    def _report_lag(self, slot: _Slot, now_s: float) -> None:
+        m = slot.monitor
+        slow_pct = 100.0 * (m.mean_period_s / m.period_s - 1.0)
+        notice = Notice(kind="lag", source=slot.node.name, code="period",
+                        reason=f"mean period {m.mean_period_s * 1e3:.2f} ms over {m.window} steps "
+                               f"({slow_pct:.1f} % slow) at t={now_s:.2f} s")
+        self.lag_notices.append(notice)
+        self.bus.publish(Topic.NOTICE, notice)
+
+
+__all__ = ["LAG_THRESHOLD", "LAG_WINDOW_STEPS", "LagMonitor", "NodeStats", "WallRuntime"]

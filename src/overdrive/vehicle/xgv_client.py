@@ -1,0 +1,531 @@
+"""The stack's side of a ByWire XGV: a JAUS 3.3 client standing where ``VehicleSim`` stands. Sans-IO.
+
+``XgvClient`` turns the stack's actuator commands into JAUS commands and the XGV's reports into
+the stack's sensor messages. It never touches a socket or a clock: ``receive(datagram, now_s)``
+takes what arrived, ``sensor_outputs(now_s)`` gives the bus messages to publish, and
+``command_datagrams(now_s)`` the datagrams to send (``overdrive.xgv_link`` does the I/O).
+
+Sequence (reference §7): Query Heartbeat Pulse until the XGV answers; then Create Service
+Connection for Report Vehicle Mode (Node Manager) and the vehicle's reports (Primitive Driver),
+and Request Component Control of the Primitive Driver (``control="wrench"``) or the Motion
+Profile Driver (``"motion-profile"``), retried every ``retry_s``; once confirmed, Resume (again
+whenever the vehicle mode says the ready mode is paused); then every call:
+
+- wrench: Set Wrench Effort (throttle = the speed server's throttle, brake, steering) to the PD;
+- motion profile: Set Motion Profile to the MPD: the driving module's SPSS speed (signed by the
+  speed server's gear) and acceleration once the speed server is in ``run`` and not e-stopped,
+  else speed 0 (at ``ESTOP_DECEL_MPS2`` when the speed server is e-stopped); the curvature of
+  the driving module's steering command;
+- Set Discrete Devices (gear, engine, parking brake, horn of the speed server's powertrain
+  command) on every change and every ``discrete_refresh_s``, to the component it controls.
+
+The stack sees the XGV through ``VehicleStatus`` (safety mode from Report Vehicle Mode, actual
+efforts from Report Wrench Effort, gear and engine from Report Discrete Devices), ``GpsIns``
+(Local Pose + Velocity State; the odometer integrates the velocity), ``Imu`` (acceleration
+differentiated from the velocity, lateral from the yaw rate), ``WheelSpeed`` (Report Wheels
+Speed). Safety: every safety mode but drive-by-wire pauses the stack (the move server caps its
+speed at 0, the speed server holds the brakes as ``computer_speed`` is false); in e-stop
+disable the XGV stops the engine, which the speed server takes as a stall (a fault). When the
+XGV's heartbeat is missing for ``heartbeat_timeout_s`` the client reports a fault and stops
+publishing sensors, so the speed server's sensor watchdog latches an emergency stop.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Final, Literal
+
+import msgspec
+
+from overdrive.control import first_order_lag
+from overdrive.jaus import (
+    DEFAULT_CLIENT_ID,
+    ConfirmComponentControl,
+    ConfirmServiceConnection,
+    ControlResponse,
+    CreateServiceConnection,
+    Header,
+    JausDecodeError,
+    JausEncodeError,
+    JausId,
+    Message,
+    Propulsion,
+    QueryHeartbeatPulse,
+    ReadyMode,
+    RejectComponentControl,
+    ReleaseComponentControl,
+    ReportDiscreteDevices,
+    ReportHeartbeatPulse,
+    ReportLocalPose,
+    ReportVehicleMode,
+    ReportVelocityState,
+    ReportWheelsSpeed,
+    ReportWrenchEffort,
+    RequestComponentControl,
+    Resume,
+    ServiceConnectionResponse,
+    SetDiscreteDevices,
+    SetMotionProfile,
+    SetWrenchEffort,
+    XgvComponent,
+    decode_datagram,
+    safety_mode_name,
+)
+from overdrive.jaus.judp import pack
+from overdrive.messages import (
+    GpsIns,
+    Imu,
+    Notice,
+    PedalCommand,
+    PowertrainCommand,
+    SetSpeed,
+    SpeedState,
+    Topic,
+    Truth,
+    VehicleStatus,
+    WheelSpeed,
+)
+from overdrive.vehicle.gate import GateLimits, gate_pedals
+from overdrive.vehicle.modes import SAFETY_MODES, computer_axes
+from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.vehicle.xgv import gear_codes, gear_from_code
+
+ESTOP_DECEL_MPS2: Final = 9.0        # speed server e-stopped: stop at the strongest preset brake
+DEFAULT_DECEL_MPS2: Final = 2.5      # not in run and no SPSS rate known: a pause-like stop
+MIN_ACCEL_MPS2: Final = 0.05         # Set Motion Profile needs a positive acceleration (xgv.py)
+SHIFT_MARGIN_S: Final = 3.0          # a commanded gear not reported after shift time + this: not shifting
+ODOMETER_GAP_S: Final = 0.25        # reports missing longer than this (a lost link, not jitter):
+                                     # odometer from the poses either side of the gap
+POSE_NOISE_SIGMAS: Final = 3.0       # position noise allowance on that chord
+MIN_CURVATURE_SPEED_MPS: Final = 0.1  # below this the yaw rate says nothing about the curvature
+
+ControlKind = Literal["wrench", "motion-profile"]
+
+
+class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """Addresses, rates and timeouts of the client; defaults are reference §7's."""
+
+    control: ControlKind = "wrench"
+    client_id: JausId = DEFAULT_CLIENT_ID
+    xgv_subsystem: int = 1
+    xgv_node: int = 1
+    authority: int = 6                    # reference §7: "authority 6"
+    report_rate_hz: float = 100.0         # service connections: the stack's 10 ms period
+    heartbeat_timeout_s: float = 1.5      # 1.5 heartbeat periods (reference §2: ~1 Hz)
+    retry_s: float = 0.5                  # requests and queries not answered are repeated
+    discrete_refresh_s: float = 0.5       # Set Discrete Devices repeated (a lost one heals)
+    motion_duration_s: float = 0.4        # reference §6: "clients send 400 ms and refresh it"
+    accel_filter_s: float = 0.0           # on the differentiated velocity (wall clock: ~0.05)
+    velocity_component: int = XgvComponent.PRIMITIVE_DRIVER
+    pose_component: int = XgvComponent.PRIMITIVE_DRIVER
+    publish_truth: bool = False           # overdrive drive: the run's trace from the reports
+    limits: GateLimits | None = None      # who may command (default: VehicleSim's sources)
+
+
+class ClientStats:
+    __slots__ = ("datagrams", "foreign", "malformed", "messages", "rejected_commands")
+
+    def __init__(self) -> None:
+        for name in self.__slots__:
+            setattr(self, name, 0)
+
+    def __repr__(self) -> str:
+        return "ClientStats(" + ", ".join(f"{k}={getattr(self, k)}" for k in self.__slots__) + ")"
+
+
+class XgvClient:
+    """JAUS client logic for one XGV (see the module docstring)."""
+
+    def __init__(self, params: VehicleParams, config: XgvClientConfig | None = None,
+                 name: str = "xgv-client") -> None:
+        self.params = params
+        self.config = cfg = config or XgvClientConfig()
+        self.name = name
+        self.limits = cfg.limits or GateLimits(
+            steer_rate_pct_per_s=100.0 * params.steer_rate_rps / params.max_steer_rad)
+        self.gear_code = gear_codes(params)
+
+        def xgv(component: int) -> JausId:
+            return JausId(cfg.xgv_subsystem, cfg.xgv_node, int(component), 1)
+
+        self.node_manager = xgv(XgvComponent.NODE_MANAGER)
+        self.pd = xgv(XgvComponent.PRIMITIVE_DRIVER)
+        self.mpd = xgv(XgvComponent.MOTION_PROFILE_DRIVER)
+        self.target = self.pd if cfg.control == "wrench" else self.mpd
+        self.wanted: dict[int, JausId] = {
+            ReportVehicleMode.code: self.node_manager,
+            ReportVelocityState.code: xgv(cfg.velocity_component),
+            ReportLocalPose.code: xgv(cfg.pose_component),
+            ReportWrenchEffort.code: self.pd,
+            ReportDiscreteDevices.code: self.pd,
+            ReportWheelsSpeed.code: self.pd,
+        }
+        self.stats = ClientStats()
+        # link and control
+        self.heartbeat_s: float | None = None
+        self.link_up = False
+        self.control = False
+        self.next_query_s = -math.inf
+        self.next_request_s = -math.inf
+        self.next_resume_s = -math.inf
+        self.next_create_s: dict[int, float] = dict.fromkeys(self.wanted, -math.inf)
+        self.connections: dict[int, int] = {}      # report code -> instance id
+        self._sequences: dict[tuple[Any, ...], int] = {}
+        self.notices: list[Notice] = []
+        self._told: set[str] = set()
+        # inputs from the stack
+        self.pedals = PedalCommand(throttle_pct=0.0, brake_pct=100.0, source="xgv-client")
+        self.steer_pct = 0.0
+        self.powertrain: PowertrainCommand | None = None
+        self.spss: SetSpeed | None = None
+        self.speed_state: SpeedState | None = None
+        self.sent_discrete: tuple[int, int, int] | None = None
+        self.next_discrete_s = -math.inf
+        self.gear_cmd: str | None = None
+        self.gear_cmd_s = 0.0
+        # reports
+        self.mode: ReportVehicleMode | None = None
+        self.wrench: ReportWrenchEffort | None = None
+        self.discrete: ReportDiscreteDevices | None = None
+        self.velocity: ReportVelocityState | None = None
+        self.pose: ReportLocalPose | None = None
+        self.wheels: ReportWheelsSpeed | None = None
+        self.fresh = False
+        self.velocity_s: float | None = None
+        self.speed_mps = 0.0
+        self.accel_mps2 = 0.0
+        self.odometer_m = 0.0
+        self.odometer_at: tuple[float, float] | None = None
+        self.step_m = 0.0          # distance and time since the last published odometer
+        self.step_s = 0.0
+        self.curvature_1pm = 0.0
+        self.engine = "off"
+        self.start_failed = False
+
+    # ------------------------------------------------------------------ wire in
+
+    def receive(self, data: bytes, now_s: float) -> None:
+        """Take one datagram from the XGV; malformed or foreign ones are counted and dropped."""
+        self.stats.datagrams += 1
+        try:
+            messages = decode_datagram(data)
+        except JausDecodeError:
+            self.stats.malformed += 1
+            return
+        cfg = self.config
+        for m in messages:
+            self.stats.messages += 1
+            h = m.header
+            if (not h.destination.matches(cfg.client_id) or h.source.subsystem != cfg.xgv_subsystem
+                    or h.source.node != cfg.xgv_node):
+                self.stats.foreign += 1
+                continue
+            self._take(m, h.source, now_s)
+
+    def _take(self, m: Message, source: JausId, now_s: float) -> None:
+        if isinstance(m, ReportHeartbeatPulse):
+            self.heartbeat_s = now_s
+            if not self.link_up:
+                self.link_up = True
+                self._told.discard("heartbeat")
+        elif isinstance(m, ConfirmComponentControl) and source == self.target:
+            self.control = m.response == ControlResponse.ACCEPTED
+            if self.control:
+                self.next_resume_s = -math.inf
+            else:
+                self._notice("control", f"{self.target} refused control (response {m.response})")
+        elif isinstance(m, RejectComponentControl) and source == self.target:
+            if self.control:
+                self._notice("control", f"{self.target} took control away (Reject Component Control)")
+            self.control = False
+        elif isinstance(m, ConfirmServiceConnection):
+            if m.response == ServiceConnectionResponse.CREATED:
+                self.connections[m.command_code] = m.instance_id
+            else:
+                self._notice(f"connection-{m.command_code}", f"service connection 0x"
+                             f"{m.command_code:04X} refused (response {m.response})")
+        elif isinstance(m, ReportVehicleMode):
+            self.mode = m
+        elif isinstance(m, ReportWrenchEffort):
+            self.wrench = m
+        elif isinstance(m, ReportDiscreteDevices):
+            self._discrete_report(m)
+        elif isinstance(m, ReportVelocityState):
+            self._velocity_report(m, now_s)
+        elif isinstance(m, ReportLocalPose):
+            self.pose = m
+        elif isinstance(m, ReportWheelsSpeed):
+            self.wheels = m
+
+    def _discrete_report(self, m: ReportDiscreteDevices) -> None:
+        self.discrete = m
+        if m.propulsion_flags is not None:
+            flags = m.propulsion_flags
+            engine = ("cranking" if flags & Propulsion.STARTER
+                      else "running" if flags & Propulsion.MAIN_POWER else "off")
+            if engine == "cranking":
+                self.start_failed = False
+            elif self.engine == "cranking" and engine == "off":
+                self.start_failed = True
+            self.engine = engine
+
+    def _velocity_report(self, m: ReportVelocityState, now_s: float) -> None:
+        if m.velocity_x_mps is None:
+            return
+        v = m.velocity_x_mps
+        if self.velocity_s is not None and now_s > self.velocity_s:
+            dt = now_s - self.velocity_s
+            self.accel_mps2 = first_order_lag((v - self.speed_mps) / dt, self.accel_mps2,
+                                              self.config.accel_filter_s, dt)
+            self.step_m += 0.5 * (abs(v) + abs(self.speed_mps)) * dt
+            self.step_s += dt
+        self.velocity_s, self.speed_mps = now_s, v
+        yaw = m.yaw_rate_radps
+        if yaw is not None and abs(v) >= MIN_CURVATURE_SPEED_MPS:
+            self.curvature_1pm = yaw / v
+        self.velocity = m
+        self.fresh = True
+
+    def _notice(self, key: str, reason: str) -> None:
+        if key not in self._told:
+            self._told.add(key)
+            self.notices.append(Notice(kind="fault", source=self.name, code=f"xgv_{key}",
+                                       reason=reason))
+
+    # ------------------------------------------------------------------ stack side
+
+    def take_inputs(self, inbox: Any) -> list[tuple[str, Any]]:
+        """The stack's commands; those from sources without control are rejected (as VehicleSim)."""
+        lim = self.limits
+        out: list[tuple[str, Any]] = []
+        for topic, msg in inbox:
+            if topic == Topic.PEDALS:
+                if self._allowed(msg, lim.pedal_sources, out):
+                    self.pedals = msg
+            elif topic == Topic.STEER:
+                if self._allowed(msg, lim.steer_sources, out) and math.isfinite(msg.steer_pct):
+                    self.steer_pct = min(max(msg.steer_pct, -100.0), 100.0)
+            elif topic == Topic.POWERTRAIN:
+                if self._allowed(msg, lim.powertrain_sources, out):
+                    self.powertrain = msg
+            elif topic == Topic.SET_SPEED and isinstance(msg, SetSpeed):
+                self.spss = msg
+            elif topic == Topic.SPEED_STATE and isinstance(msg, SpeedState):
+                self.speed_state = msg
+        return out
+
+    def _allowed(self, msg: Any, sources: frozenset[str], out: list) -> bool:
+        if getattr(msg, "source", None) in sources:
+            return True
+        self.stats.rejected_commands += 1
+        out.append((Topic.NOTICE, Notice(kind="rejected", source=self.name, code="no_control",
+                                         reason=f"{type(msg).__name__} from {msg.source!r}")))
+        return False
+
+    def sensor_outputs(self, now_s: float) -> list[tuple[str, Any]]:
+        """Bus messages for what arrived since the last call (nothing while the link is down)."""
+        cfg = self.config
+        out: list[tuple[str, Any]] = []
+        if (self.link_up and self.heartbeat_s is not None
+                and now_s - self.heartbeat_s > cfg.heartbeat_timeout_s):
+            self.link_up = False
+            self.control = False
+            self.connections.clear()
+            self._notice("heartbeat", f"no heartbeat from the XGV for {cfg.heartbeat_timeout_s} s")
+        out.extend((Topic.NOTICE, n) for n in self.notices)
+        self.notices.clear()
+        fresh, self.fresh = self.fresh, False
+        if not (fresh and self.link_up and self.mode is not None and self.discrete is not None):
+            return out
+        out.append((Topic.VEHICLE_STATUS, self.vehicle_status(now_s)))
+        v = self.speed_mps
+        pose = self.pose
+        self._odometer(pose)
+        pitch = (pose.pitch_rad or 0.0) if pose is not None else 0.0
+        roll = (pose.roll_rad or 0.0) if pose is not None else 0.0
+        yaw_rate = (self.velocity.yaw_rate_radps or 0.0) if self.velocity is not None else 0.0
+        if self.wheels is not None:
+            w = self.wheels
+            wheel = (w.right_front_mps + w.left_front_mps + w.right_rear_mps + w.left_rear_mps) / 4.0
+        else:
+            wheel = v
+        out.append((Topic.WHEEL_SPEED, WheelSpeed(speed_mps=wheel)))
+        if pose is not None:
+            out.append((Topic.GPS_INS, GpsIns(
+                x_m=pose.x_m or 0.0, y_m=-(pose.y_m or 0.0), heading_rad=-(pose.yaw_rad or 0.0),
+                speed_mps=v, pitch_rad=pitch, roll_rad=roll, odometer_m=self.odometer_m)))
+        out.append((Topic.IMU, Imu(
+            accel_x_mps2=self.accel_mps2 + G_MPS2 * math.sin(pitch),
+            accel_y_mps2=-v * yaw_rate, accel_z_mps2=G_MPS2 * math.cos(pitch),
+            yaw_rate_rps=-yaw_rate)))
+        if cfg.publish_truth and pose is not None:
+            out.append((Topic.TRUTH, Truth(
+                x_m=pose.x_m or 0.0, y_m=-(pose.y_m or 0.0), heading_rad=-(pose.yaw_rad or 0.0),
+                speed_mps=v, accel_mps2=self.accel_mps2, lat_accel_mps2=v * yaw_rate,
+                curvature_1pm=self.curvature_1pm, pitch_rad=pitch, roll_rad=roll,
+                odometer_m=self.odometer_m, slip=False, contact=False)))
+        return out
+
+    def _odometer(self, pose: ReportLocalPose | None) -> None:
+        """Path length: the velocity integrated, or across a gap in the reports (a lost link)
+        the straight line between the poses either side of it."""
+        here = (pose.x_m or 0.0, pose.y_m or 0.0) if pose is not None else None
+        if self.step_s > ODOMETER_GAP_S and here is not None and self.odometer_at is not None:
+            # the chord, less what the position noise alone could make of it (the velocity
+            # either side says nothing about what happened in between)
+            noise = POSE_NOISE_SIGMAS * math.sqrt(2.0) * ((pose.position_rms_m or 0.0)
+                                                           if pose is not None else 0.0)
+            chord = math.hypot(here[0] - self.odometer_at[0], here[1] - self.odometer_at[1])
+            self.odometer_m += max(0.0, chord - noise)
+        else:
+            self.odometer_m += self.step_m
+        self.step_m = self.step_s = 0.0
+        self.odometer_at = here
+
+    def safety_mode(self) -> str:
+        """The contract's name of the reported safety mode; unknown values pause."""
+        if self.mode is None:
+            return "inactive"
+        name = safety_mode_name(self.mode.safety_mode)
+        if self.mode.safety_mode == 0:
+            return "inactive"
+        return name if name in SAFETY_MODES else "software-pause"
+
+    def vehicle_status(self, now_s: float) -> VehicleStatus:
+        p = self.params
+        mode = self.safety_mode()
+        overrides = self.mode.partial_mode_overrides if self.mode is not None else 0
+        partial = ("manual-steering" if overrides & 1 else "manual-speed" if overrides & 2
+                   else "full")
+        computer_steering, computer_speed = computer_axes(mode, partial)
+        d = self.discrete
+        gear = gear_from_code(p, d.gear) if d is not None and d.gear is not None else None
+        gear = gear or p.park_gear
+        shifting = (self.gear_cmd is not None and self.gear_cmd != gear
+                    and now_s - self.gear_cmd_s < p.shift_time_s + SHIFT_MARGIN_S)
+        w = self.wrench
+        return VehicleStatus(
+            gear=gear, shifting=shifting, engine=self.engine,  # type: ignore[arg-type]
+            engine_rpm=self._rpm(gear), start_failed=self.start_failed, traction_control=False,
+            steer_pct=(w.steering_pct or 0.0) if w is not None else 0.0,
+            throttle_pct=(w.throttle_pct or 0.0) if w is not None else 0.0,
+            brake_pct=(w.brake_pct or 0.0) if w is not None else 0.0,
+            safety_mode=mode, computer_speed=computer_speed, computer_steering=computer_steering)
+
+    def _rpm(self, gear_name: str) -> float:
+        """Engine speed estimated from the speed in gear (JAUS 3.3 reports none)."""
+        p = self.params
+        if self.engine != "running":
+            return 0.0
+        gear = p.gear(gear_name)
+        if gear.direction == 0 or gear.max_speed_mps <= 0.0:
+            return p.idle_rpm
+        return p.idle_rpm + (p.redline_rpm - p.idle_rpm) * min(abs(self.speed_mps)
+                                                               / gear.max_speed_mps, 1.0)
+
+    # ------------------------------------------------------------------ wire out
+
+    def command_datagrams(self, now_s: float) -> list[bytes]:
+        """What to send now: the connection sequence, then the stream of commands."""
+        cfg = self.config
+        messages: list[Message] = []
+        if not self.link_up:
+            if now_s >= self.next_query_s:
+                messages.append(self._to(QueryHeartbeatPulse(), self.node_manager))
+                self.next_query_s = now_s + cfg.retry_s
+        else:
+            for code, component in self.wanted.items():
+                if code not in self.connections and now_s >= self.next_create_s[code]:
+                    messages.append(self._to(CreateServiceConnection(
+                        command_code=code, rate_hz=cfg.report_rate_hz), component,
+                        service_connection=True))
+                    self.next_create_s[code] = now_s + cfg.retry_s
+            if not self.control and now_s >= self.next_request_s:
+                messages.append(self._to(RequestComponentControl(authority=cfg.authority),
+                                         self.target))
+                self.next_request_s = now_s + cfg.retry_s
+        if self.control:
+            if (self.mode is None or self.mode.ready_mode != ReadyMode.READY) \
+                    and now_s >= self.next_resume_s:
+                messages.append(self._to(Resume(), self.target))
+                self.next_resume_s = now_s + cfg.retry_s
+            discrete = self._discrete_command(now_s)
+            if discrete is not None:
+                messages.append(discrete)
+            messages.append(self._wrench() if cfg.control == "wrench" else self._motion())
+        try:
+            return pack(messages)
+        except JausEncodeError:   # cannot happen with validated inputs; never crash the stack
+            self._notice("encode", "a command could not be encoded")
+            return []
+
+    def release(self) -> list[bytes]:
+        """Datagrams giving control back (the XGV then pauses)."""
+        if not self.control:
+            return []
+        self.control = False
+        return pack([self._to(ReleaseComponentControl(), self.target)])
+
+    def _wrench(self) -> SetWrenchEffort:
+        throttle, brake, _ = gate_pedals(self.pedals.throttle_pct, self.pedals.brake_pct)
+        return self._to(SetWrenchEffort.xgv(throttle_pct=throttle, steering_pct=self.steer_pct,
+                                            brake_pct=brake), self.pd)
+
+    def motion_command(self) -> tuple[float, float, float]:
+        """(signed speed, acceleration, curvature) for Set Motion Profile from the stack's intent."""
+        p = self.params
+        ss, spss = self.speed_state, self.spss
+        curvature = math.tan(self.steer_pct / 100.0 * p.max_steer_rad) / p.wheelbase_m
+        driving = (ss is not None and ss.state == "run" and not ss.estop and spss is not None
+                   and spss.state == "run" and spss.fault == 0 and ss.gear in p.gear_names
+                   and math.isfinite(spss.speed_mps) and math.isfinite(spss.accel_mps2))
+        if driving:
+            assert ss is not None and spss is not None
+            direction = p.gear(ss.gear).direction
+            speed = direction * min(max(spss.speed_mps, 0.0), 65.0)
+            accel = min(max(spss.accel_mps2, MIN_ACCEL_MPS2), 100.0)
+            return speed, accel, curvature
+        if ss is not None and ss.estop:
+            return 0.0, ESTOP_DECEL_MPS2, curvature
+        accel = DEFAULT_DECEL_MPS2
+        if spss is not None and math.isfinite(spss.accel_mps2) and spss.accel_mps2 > 0.0:
+            accel = min(spss.accel_mps2, 100.0)
+        return 0.0, accel, curvature
+
+    def _motion(self) -> SetMotionProfile:
+        p = self.params
+        speed, accel, curvature = self.motion_command()
+        rate = min(p.steer_rate_rps / p.wheelbase_m, 10.0)   # the steering's own curvature rate
+        return self._to(SetMotionProfile.single(
+            speed_mps=speed, max_accel_mps2=accel, curvature_1pm=curvature,
+            curvature_rate_1pms=rate, duration_s=self.config.motion_duration_s), self.mpd)
+
+    def _discrete_command(self, now_s: float) -> SetDiscreteDevices | None:
+        pt = self.powertrain
+        if pt is None or pt.gear not in self.gear_code:
+            return None
+        engine = int(Propulsion.MAIN_POWER) if pt.engine_on else 0
+        if pt.engine_on and self.engine != "running":
+            engine |= int(Propulsion.STARTER)
+        wanted = (engine, int(pt.park_brake) | int(pt.horn) << 1, self.gear_code[pt.gear])
+        if wanted == self.sent_discrete and now_s < self.next_discrete_s:
+            return None
+        if pt.gear != self.gear_cmd:
+            self.gear_cmd, self.gear_cmd_s = pt.gear, now_s
+        self.sent_discrete = wanted
+        self.next_discrete_s = now_s + self.config.discrete_refresh_s
+        return self._to(SetDiscreteDevices(propulsion_flags=wanted[0], parking_horn_flags=wanted[1],
+                                           gear=wanted[2]), self.target)
+
+    def _to(self, message: Message, destination: JausId, *,
+            service_connection: bool = False) -> Any:
+        source = self.config.client_id
+        key: tuple[Any, ...] = (destination, message.code) if service_connection else (destination,)
+        sequence = self._sequences.get(key, 0)
+        self._sequences[key] = (sequence + 1) % 0x10000
+        return msgspec.structs.replace(message, header=Header(
+            destination=destination, source=source, service_connection=service_connection,
+            sequence=sequence))
+
+
+__all__ = ["XgvClient", "XgvClientConfig"]

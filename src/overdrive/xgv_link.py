@@ -1,0 +1,347 @@
+"""The XGV over JAUS/UDP in a run: datagram links and the nodes at the runtime edge.
+
+The XGV logic is sans-IO (``vehicle.xgv.XgvSimulator``, ``vehicle.xgv_client.XgvClient``);
+this module carries their datagrams and puts them on the bus:
+
+- ``LoopbackLink``: the two ends of one run in one process. ``transport="udp"`` (the default
+  for ``interface: jaus``) uses two real UDP sockets on 127.0.0.1 with ephemeral ports;
+  ``"memory"`` hands the same bytes over in memory (``interface: embedded`` with
+  ``control: motion-profile``). Runs stay deterministic: each end drains exactly the datagrams
+  the other sent (waiting for loopback delivery if needed), so nothing depends on timing. The
+  scenario's faults on channel ``jaus`` (drop, delay, duplicate, reorder) act on the datagrams.
+- ``UdpPort``: one non-blocking socket towards a remote XGV (``overdrive drive``).
+- Nodes, in tick order: ``XgvSimNode`` ("xgv": the simulated XGV; it also publishes what an
+  XGV does not report over JAUS: the simulator's ground truth and the forward radar, an
+  external sensor in this setup), ``XgvSensorNode`` ("vehicle": the client's sensor side,
+  first like the vehicle), the servers, ``XgvCommandNode`` ("xgv-client": the client's
+  command side, last, so the XGV executes a command 10 ms after the speed server made it,
+  as in the embedded run).
+
+Sockets open on the first step and close with ``close()`` (``run_scenario`` closes every node).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import select
+import socket
+from collections.abc import Sequence
+from typing import Any, Final, Literal
+
+from overdrive.faults import ChannelFaults, Window
+from overdrive.messages import Topic
+from overdrive.player import world_from_spec
+from overdrive.scenario import Scenario
+from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
+from overdrive.vehicle.xgv import XgvSimulator
+from overdrive.vehicle.xgv_client import XgvClient, XgvClientConfig
+
+Address = tuple[str, int]
+LOOPBACK: Final = "127.0.0.1"
+DELIVERY_TIMEOUT_S: Final = 1.0      # a loopback datagram not there after this is lost
+RECEIVE_BUFFER: Final = 65535        # above the JUDP maximum, so oversized datagrams are seen
+SOCKET_BUFFER_BYTES: Final = 1 << 20
+_TO = {"xgv": "client", "client": "xgv"}
+Side = Literal["xgv", "client"]
+
+
+class LoopbackLink:
+    """Both ends of the JAUS link of one lock-step run (see the module docstring)."""
+
+    def __init__(self, transport: Literal["udp", "memory"] = "udp",
+                 faults: Sequence[tuple[str, float, float, float]] = ()) -> None:
+        self.transport = transport
+        self.faults = ChannelFaults()
+        for kind, start_s, for_s, delay_s in faults:
+            for side in _TO:
+                self.faults.windows.setdefault(f"jaus>{side}", []).append(
+                    Window(kind, start_s, start_s + for_s, delay_s))
+        self.sockets: dict[str, socket.socket] = {}
+        self.addresses: dict[str, Address] = {"xgv": ("memory", 1), "client": ("memory", 2)}
+        self.queues: dict[str, list[tuple[bytes, Address]]] = {"xgv": [], "client": []}
+        self.expected = {"xgv": 0, "client": 0}
+        self.received = {"xgv": 0, "client": 0}
+        self.lost = 0
+        self.closed = False
+
+    def _open(self) -> None:
+        if self.sockets or self.transport == "memory":
+            return
+        if self.closed:
+            raise RuntimeError("the JAUS link is closed")
+        try:
+            for side in _TO:
+                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                self.sockets[side] = sock
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, SOCKET_BUFFER_BYTES)
+                sock.bind((LOOPBACK, 0))
+                sock.setblocking(False)
+                self.addresses[side] = sock.getsockname()[:2]
+        except OSError:
+            self.close()
+            raise
+
+    def address(self, side: Side) -> Address:
+        self._open()
+        return self.addresses[side]
+
+    def send(self, side: Side, data: bytes, now_s: float, to: Address | None = None) -> None:
+        """Send from ``side`` to the other end (or to ``to``, which may be elsewhere)."""
+        self._open()
+        dest = _TO[side]
+        if to is not None and to != self.addresses[dest]:
+            if self.transport == "udp":
+                self.sockets[side].sendto(data, to)
+            return
+        self.faults.now_s = now_s
+        for datagram in self.faults.route(f"jaus>{dest}", data):
+            self._deliver(side, dest, datagram)
+
+    def _deliver(self, side: str, dest: str, data: bytes) -> None:
+        if self.transport == "memory":
+            self.queues[dest].append((data, self.addresses[side]))
+        else:
+            self.sockets[side].sendto(data, self.addresses[dest])
+        self.expected[dest] += 1
+
+    def receive(self, side: Side, now_s: float) -> list[tuple[bytes, Address]]:
+        """Every datagram sent to ``side`` so far (held ones once their delay is over)."""
+        self._open()
+        self.faults.now_s = now_s
+        for topic, data in self.faults.due():
+            dest = topic.split(">", 1)[1]
+            self._deliver(_TO[dest], dest, data)
+        if self.transport == "memory":
+            got, self.queues[side] = self.queues[side], []
+            self.received[side] += len(got)
+            return got
+        sock = self.sockets[side]
+        got = []
+        while self.received[side] < self.expected[side]:
+            try:
+                data, sender = sock.recvfrom(RECEIVE_BUFFER)
+            except BlockingIOError:
+                ready, _, _ = select.select([sock], [], [], DELIVERY_TIMEOUT_S)
+                if not ready:
+                    self.lost += self.expected[side] - self.received[side]
+                    self.received[side] = self.expected[side]
+                continue
+            self.received[side] += 1
+            got.append((data, sender[:2]))
+        return got
+
+    def close(self) -> None:
+        self.closed = True
+        for sock in self.sockets.values():
+            sock.close()
+        self.sockets.clear()
+
+
+class UdpPort:
+    """A non-blocking UDP socket talking to one remote XGV (wall-clock runs)."""
+
+    def __init__(self, remote: Address, bind: Address = ("0.0.0.0", 0)) -> None:
+        self.remote = remote
+        self.bind = bind
+        self.sock: socket.socket | None = None
+        self.foreign = 0
+
+    def _open(self) -> socket.socket:
+        if self.sock is None:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            try:
+                sock.bind(self.bind)
+                sock.setblocking(False)
+            except OSError:
+                sock.close()
+                raise
+            self.sock = sock
+        return self.sock
+
+    def send(self, data: bytes) -> None:
+        with contextlib.suppress(BlockingIOError):
+            self._open().sendto(data, self.remote)
+
+    def receive(self) -> list[bytes]:
+        sock = self._open()
+        got = []
+        while True:
+            try:
+                data, sender = sock.recvfrom(RECEIVE_BUFFER)
+            except (BlockingIOError, ConnectionRefusedError):
+                return got
+            if sender[0] != self.remote[0]:
+                self.foreign += 1
+                continue
+            got.append(data)
+
+    def close(self) -> None:
+        if self.sock is not None:
+            self.sock.close()
+            self.sock = None
+
+
+# --------------------------------------------------------------------------- nodes
+
+class XgvSimNode:
+    """The simulated XGV as the first node of a lock-step run."""
+
+    name = "xgv"
+    period_s = 0.01
+    subscriptions = (Topic.SAFETY, WORLD_TOPIC, FAULTS_TOPIC)
+
+    def __init__(self, simulator: XgvSimulator, link: LoopbackLink) -> None:
+        self.simulator = simulator
+        self.link = link
+
+    @property
+    def gate_interventions(self) -> dict[str, int]:
+        return self.simulator.gate_interventions
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        sim, link = self.simulator, self.link
+        for topic, msg in inbox:
+            if topic == Topic.SAFETY:
+                sim.set_devices(msg)
+            elif topic == WORLD_TOPIC:
+                sim.set_world(msg)
+            elif topic == FAULTS_TOPIC:
+                sim.apply_fault(msg)
+        for data, sender in link.receive("xgv", now_s):
+            for reply, address in sim.receive(data, sender, now_s):
+                link.send("xgv", reply, now_s, to=address)
+        for datagram, address in sim.step(now_s):
+            link.send("xgv", datagram, now_s, to=address)
+        latest = sim.latest
+        return [(topic, latest[topic]) for topic in (Topic.RADAR, Topic.TRUTH) if topic in latest]
+
+    def close(self) -> None:
+        self.link.close()
+
+
+class _ClientPort:
+    """What the client nodes need from a link: receive and send the client's datagrams."""
+
+    def __init__(self, link: LoopbackLink | UdpPort) -> None:
+        self.link = link
+
+    def receive(self, now_s: float) -> list[bytes]:
+        if isinstance(self.link, LoopbackLink):
+            return [data for data, _ in self.link.receive("client", now_s)]
+        return self.link.receive()
+
+    def send(self, data: bytes, now_s: float) -> None:
+        if isinstance(self.link, LoopbackLink):
+            self.link.send("client", data, now_s)
+        else:
+            self.link.send(data)
+
+    def close(self) -> None:
+        self.link.close()
+
+
+class XgvSensorNode:
+    """The client's sensor side: the XGV's reports in, the stack's sensor messages out."""
+
+    name = "vehicle"
+    period_s = 0.01
+    subscriptions: tuple[str, ...] = ()
+
+    def __init__(self, client: XgvClient, port: _ClientPort) -> None:
+        self.client = client
+        self.port = port
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        for data in self.port.receive(now_s):
+            self.client.receive(data, now_s)
+        return self.client.sensor_outputs(now_s)
+
+    def close(self) -> None:
+        self.port.close()
+
+
+class XgvCommandNode:
+    """The client's command side: the stack's commands in, JAUS commands out."""
+
+    name = "xgv-client"
+    period_s = 0.01
+    subscriptions = (Topic.PEDALS, Topic.STEER, Topic.POWERTRAIN, Topic.SET_SPEED,
+                     Topic.SPEED_STATE)
+
+    def __init__(self, client: XgvClient, port: _ClientPort) -> None:
+        self.client = client
+        self.port = port
+        self.last_now_s = 0.0
+
+    def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        self.last_now_s = now_s
+        out = self.client.take_inputs(inbox)
+        for datagram in self.client.command_datagrams(now_s):
+            self.port.send(datagram, now_s)
+        return out
+
+    def close(self) -> None:
+        """Give control back (the XGV pauses), then close the socket."""
+        with contextlib.suppress(OSError, RuntimeError):
+            for datagram in self.client.release():
+                self.port.send(datagram, self.last_now_s)
+        self.port.close()
+
+
+# --------------------------------------------------------------------------- compositions
+
+def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
+    """The scenario's faults on channel ``jaus``: (kind, start, duration, delay)."""
+    found = []
+    for event in scenario.events:
+        body = event.body
+        if event.kind in ("drop", "delay", "duplicate", "reorder") and body.channel == "jaus":
+            found.append((event.kind, event.at_s, body.for_s, getattr(body, "delay_s", 0.0)))
+    return found
+
+
+def lockstep_nodes(scenario: Scenario, servers: Sequence[Any]) -> list[Any]:
+    """The XGV, the client and ``servers`` (player first) for a lock-step run of ``scenario``."""
+    spec = scenario.spec
+    transport: Literal["udp", "memory"] = "udp" if spec.interface == "jaus" else "memory"
+    link = LoopbackLink(transport, jaus_faults(scenario))
+    simulator = XgvSimulator(scenario.vehicle, world_from_spec(spec.world), spec.seed,
+                             ready=spec.start == "ready")
+    control = "motion-profile" if spec.control == "motion-profile" else "wrench"
+    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control))
+    port = _ClientPort(link)
+    return [XgvSimNode(simulator, link), XgvSensorNode(client, port), *servers,
+            XgvCommandNode(client, port)]
+
+
+def drive_nodes(scenario: Scenario, servers: Sequence[Any], remote: Address,
+                bind: Address = ("0.0.0.0", 0)) -> list[Any]:
+    """The client and ``servers`` for a wall-clock run against the XGV at ``remote``."""
+    control = "motion-profile" if scenario.spec.control == "motion-profile" else "wrench"
+    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, publish_truth=True,
+                                                         accel_filter_s=0.05))
+    port = _ClientPort(UdpPort(remote, bind))
+    return [XgvSensorNode(client, port), *servers, XgvCommandNode(client, port)]
+
+
+def run_drive(scenario: Scenario, remote: Address, out_dir: Any = None, *,
+              bind: Address = ("0.0.0.0", 0), plot: bool = True, keep_trace: bool = False) -> Any:
+    """``overdrive drive``: the stack against the XGV at ``remote``, in wall-clock time.
+
+    The servers are those ``overdrive sim`` builds for the scenario; the run folder is the
+    same, its trace and final state taken from the XGV's reports. Safety-device and world
+    events are physical: the XGV (or ``overdrive xgv-sim --scenario``) plays them, not the stack.
+    """
+    import msgspec
+
+    from overdrive.sim import build_nodes, run_scenario
+
+    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
+        scenario.spec, interface="embedded", control="wrench"))
+    servers = build_nodes(embedded)[1:]
+    return run_scenario(scenario, out_dir, realtime=True, plot=plot, keep_trace=keep_trace,
+                        nodes=drive_nodes(scenario, servers, remote, bind))
+
+
+__all__ = ["LoopbackLink", "UdpPort", "XgvCommandNode", "XgvSensorNode", "XgvSimNode",
+           "drive_nodes", "jaus_faults", "lockstep_nodes", "run_drive"]

@@ -1,0 +1,147 @@
+"""Wall-clock runtime on a fake clock: schedule, skipping, lag detection, inbox hand-over."""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+import pytest
+
+from overdrive.bus.local import LocalBus
+from overdrive.bus.zenoh_bus import SafeInbox
+from overdrive.messages import Notice, Topic
+from overdrive.runtime_wall import LAG_THRESHOLD, LagMonitor, WallRuntime
+
+
+class FakeClock:
+    """A clock that only moves when the runtime sleeps or a node 'works'."""
+
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        self.t += 1e-6          # every read costs a microsecond, so spins terminate
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.t += s
+
+
+class Worker:
+    def __init__(self, name: str, period_s: float, clock: FakeClock, cost_s: float = 0.0,
+                 subscriptions=(), publish: str | None = None) -> None:
+        self.name, self.period_s, self.subscriptions = name, period_s, tuple(subscriptions)
+        self.clock, self.cost_s, self.publish = clock, cost_s, publish
+        self.calls: list[tuple[float, list]] = []
+
+    def step(self, now_s: float, inbox) -> list[tuple[str, Any]]:
+        self.calls.append((now_s, list(inbox)))
+        self.clock.t += self.cost_s
+        return [(self.publish, now_s)] if self.publish else []
+
+
+def test_nodes_run_at_their_rates_without_drift() -> None:
+    clock = FakeClock()
+    fast, slow = Worker("fast", 0.01, clock), Worker("slow", 0.1, clock)
+    rt = WallRuntime([fast, slow], LocalBus(), clock=clock, sleep=clock.sleep)
+    rt.run(2.0)
+    assert len(fast.calls) == 201 and len(slow.calls) == 21
+    assert fast.calls[-1][0] == pytest.approx(2.0, abs=1e-3), "absolute schedule, no drift"
+    stats = rt.stats()["fast"]
+    assert stats["skipped"] == 0 and stats["lag_reports"] == 0
+    assert stats["lateness_max_ms"] < 0.1
+
+
+def test_messages_flow_between_nodes_through_the_bus() -> None:
+    clock = FakeClock()
+    pub = Worker("pub", 0.01, clock, publish="x")
+    sub = Worker("sub", 0.05, clock, subscriptions=["x"])
+    WallRuntime([pub, sub], LocalBus(), clock=clock, sleep=clock.sleep).run(0.1)
+    assert [m for _, m in sub.calls[0][1]] == pytest.approx([0.0], abs=1e-3), "same round, later node"
+    assert [m for _, m in sub.calls[1][1]] == pytest.approx([0.01, 0.02, 0.03, 0.04, 0.05], abs=1e-3)
+
+
+@pytest.mark.parametrize("slow_pct", [1.0, 3.0, 10.0])
+def test_lag_is_reported_when_mean_period_is_over_two_percent_slow(slow_pct: float) -> None:
+    clock = FakeClock()
+    bus = LocalBus()
+    notices = bus.subscribe([Topic.NOTICE])
+    node = Worker("busy", 0.01, clock, cost_s=0.01 * (1 + slow_pct / 100))
+    rt = WallRuntime([node], bus, clock=clock, sleep=clock.sleep)
+    rt.run(3.0)
+    lagging = slow_pct / 100 > LAG_THRESHOLD
+    assert rt.stats()["busy"]["lag_reports"] == (1 if lagging else 0)
+    kinds = [(m.kind, m.source) for _, m in notices if isinstance(m, Notice)]
+    assert kinds == ([("lag", "busy")] if lagging else [])
+
+
+def test_a_node_far_behind_skips_missed_steps_instead_of_bursting() -> None:
+    clock = FakeClock()
+    node = Worker("stall", 0.01, clock)
+    rt = WallRuntime([node], LocalBus(), clock=clock, sleep=clock.sleep)
+    original = node.step
+
+    def stall_once(now_s: float, inbox):
+        if len(node.calls) == 10:
+            clock.t += 0.055                 # one 55 ms hiccup
+        return original(now_s, inbox)
+
+    node.step = stall_once  # type: ignore[method-assign]
+    rt.run(0.5)
+    assert rt.stats()["stall"]["skipped"] == 4, "0.11..0.14 skipped; 0.15 runs 5 ms late"
+    gaps = [b[0] - a[0] for a, b in zip(node.calls, node.calls[1:], strict=False)]
+    assert max(gaps) < 0.07 and sorted(gaps)[1] > 0.005, "no burst of back-to-back steps"
+
+
+def test_lag_monitor_recovers_with_hysteresis() -> None:
+    m = LagMonitor(0.01, window=10)
+    t, reports = 0.0, 0
+    for period in [0.0105] * 30 + [0.0100] * 30 + [0.0105] * 30:
+        t += period
+        reports += m.observe(t)
+    assert reports == 2 and m.lag_reports == 2
+
+
+def test_shared_epoch_in_the_past_joins_on_the_same_schedule() -> None:
+    clock = FakeClock()
+    node = Worker("late", 0.01, clock)
+    rt = WallRuntime([node], LocalBus(), clock=clock, sleep=clock.sleep)
+    rt.start_s = clock.t - 5.0043
+    rt.run(5.1)
+    first = node.calls[0][0]
+    assert first == pytest.approx(5.01, abs=1e-4)
+    assert len(node.calls) == 10
+
+
+def test_safe_inbox_loses_nothing_under_concurrent_appends() -> None:
+    inbox = SafeInbox()
+    n_threads, per_thread = 4, 5000
+    got: list = []
+
+    def producer(k: int) -> None:
+        for i in range(per_thread):
+            inbox.append(("t", (k, i)))
+
+    threads = [threading.Thread(target=producer, args=(k,)) for k in range(n_threads)]
+    for th in threads:
+        th.start()
+    while any(th.is_alive() for th in threads):
+        got.extend(inbox.drain())
+    got.extend(inbox.drain())
+    assert len(got) == n_threads * per_thread
+    for k in range(n_threads):
+        assert [i for _, (kk, i) in got if kk == k] == list(range(per_thread)), "per-producer order kept"
+
+
+def test_real_clock_loop_keeps_100_hz_and_stops_on_request() -> None:
+    node = Worker("real", 0.01, FakeClock())
+    rt = WallRuntime([node], LocalBus())
+    timer = threading.Timer(0.5, rt.stop)
+    timer.start()
+    t0 = time.monotonic()
+    rt.run()
+    elapsed = time.monotonic() - t0
+    timer.cancel()
+    assert 0.45 < elapsed < 1.0
+    assert abs(len(node.calls) - round(elapsed / 0.01)) <= 3

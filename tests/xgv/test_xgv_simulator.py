@@ -1,0 +1,272 @@
+"""The simulated XGV, sans-IO: access control, status, service connections, modes, loops."""
+
+from __future__ import annotations
+
+import random
+
+import msgspec
+import pytest
+
+from overdrive.jaus import (
+    ActivateServiceConnection,
+    ConfirmComponentControl,
+    ConfirmServiceConnection,
+    ControlResponse,
+    CreateServiceConnection,
+    Gear,
+    Propulsion,
+    QueryComponentControl,
+    QueryComponentStatus,
+    QueryHeartbeatPulse,
+    QueryLocalPose,
+    QueryVelocityState,
+    RejectComponentControl,
+    ReleaseComponentControl,
+    ReportComponentControl,
+    ReportComponentStatus,
+    ReportHeartbeatPulse,
+    ReportLocalPose,
+    ReportVehicleMode,
+    ReportVelocityState,
+    RequestComponentControl,
+    Resume,
+    ServiceConnectionResponse,
+    SetDiscreteDevices,
+    SetEmergency,
+    SetMotionProfile,
+    SetWrenchEffort,
+    Standby,
+    SuspendServiceConnection,
+    TerminateServiceConnection,
+    XgvSecondaryStatus,
+    encode_datagram,
+)
+from overdrive.messages import SafetyDevices
+from overdrive.vehicle.presets import PRESETS
+from overdrive.vehicle.xgv import LAPSE_DECEL_MPS2, gear_codes, gear_from_code, jaus_timestamp
+from tests.xgv.xgv_helpers import CLIENT, MPD, NM, OTHER, Peer, make_sim
+
+
+def controlled(ready: bool = True) -> tuple[Peer, Peer]:
+    sim = make_sim(ready=ready)
+    mail: dict = {}
+    client = Peer(sim, CLIENT, ("127.0.0.1", 40000), mail)
+    other = Peer(sim, OTHER, ("127.0.0.2", 3794), mail)
+    replies = client.send(RequestComponentControl(authority=6), Resume())
+    assert [type(m) for m in replies] == [ConfirmComponentControl]
+    assert replies[0].response == ControlResponse.ACCEPTED
+    return client, other
+
+
+def drive(client: Peer, throttle_pct: float, steps: int, brake_pct: float = 0.0) -> None:
+    for _ in range(steps):
+        client.send(SetWrenchEffort.xgv(throttle_pct=throttle_pct, steering_pct=0.0,
+                                        brake_pct=brake_pct))
+        client.step()
+
+
+# --------------------------------------------------------------------------- access control
+
+def test_control_is_exclusive_and_commands_from_others_are_ignored() -> None:
+    client, other = controlled()
+    assert client.sim.mode.safety_mode == "drive-by-wire"
+    refused = other.send(RequestComponentControl(authority=6))
+    assert refused[0].response == ControlResponse.NOT_ACCEPTED
+    ignored = client.sim.stats.ignored_no_control
+    other.send(SetWrenchEffort.xgv(throttle_pct=100.0, steering_pct=50.0, brake_pct=0.0),
+               Standby(), ReleaseComponentControl())
+    assert client.sim.stats.ignored_no_control == ignored + 3
+    assert client.sim.actuation.throttle_pct == 0.0
+    assert client.sim.mode.ready_mode == "ready"
+
+
+def test_higher_authority_takes_control_and_the_loser_is_told() -> None:
+    client, other = controlled()
+    taken = other.send(RequestComponentControl(authority=7))
+    assert taken[0].response == ControlResponse.ACCEPTED
+    assert client.of(RejectComponentControl)
+    assert client.sim.pd.controller == OTHER
+    assert client.sim.mode.ready_mode == "software-pause"    # the new controller must Resume
+    report = other.send(QueryComponentControl())[0]
+    assert isinstance(report, ReportComponentControl)
+    assert (report.controller, report.authority) == (OTHER, 7)
+
+
+def test_release_gives_software_pause_and_a_reject() -> None:
+    client, _ = controlled()
+    replies = client.send(ReleaseComponentControl())
+    assert isinstance(replies[0], RejectComponentControl)
+    client.step()
+    assert client.sim.mode.control_mode == "software-pause"
+    assert client.sim.mode.safety_mode == "software-pause"
+    assert client.sim.core.mode == "software-pause"
+
+
+def test_component_status_and_emergency() -> None:
+    client, other = controlled()
+    status = client.send(QueryComponentStatus())[0]
+    assert isinstance(status, ReportComponentStatus) and status.primary_status == 1   # ready
+    assert status.secondary_status & XgvSecondaryStatus.COMPUTER_SPEED
+    other.send(SetEmergency())                       # anyone may raise an emergency
+    assert client.sim.pd.status == 5
+    assert client.sim.mode.safety_mode == "software-pause"
+    client.send(Resume())                            # not out of an emergency
+    assert client.sim.pd.status == 5
+
+
+# --------------------------------------------------------------------------- wire robustness
+
+@pytest.mark.parametrize("seed", range(3))
+def test_malformed_datagrams_are_counted_never_fatal(seed: int) -> None:
+    client, _ = controlled()
+    rng = random.Random(seed)
+    good = encode_datagram(SetWrenchEffort.xgv(throttle_pct=10.0, steering_pct=0.0,
+                                               brake_pct=0.0).with_header(source=CLIENT))
+    sim = client.sim
+    for _ in range(300):
+        data = bytearray(good)
+        for _ in range(rng.randint(1, 4)):
+            data[rng.randrange(len(data))] = rng.randrange(256)
+        data = data[:rng.randint(0, len(data))] if rng.random() < 0.3 else data
+        sim.receive(bytes(data), ("127.0.0.1", 40000), 0.0)
+        sim.step(0.0)
+    assert sim.stats.malformed > 0
+    assert sim.stats.datagrams == 300 + 1
+
+
+# --------------------------------------------------------------------------- service connections
+
+def test_service_connection_lifecycle_for_vehicle_mode() -> None:
+    client, _ = controlled()
+    confirm = client.send(CreateServiceConnection(command_code=0xE456, rate_hz=50.0), to=NM,
+                          service=True)[0]
+    assert isinstance(confirm, ConfirmServiceConnection)
+    assert confirm.response == ServiceConnectionResponse.CREATED
+    assert confirm.header.service_connection
+    reports = [m for m in client.step(10) if isinstance(m, ReportVehicleMode)]
+    assert len(reports) == 5                                   # 50 Hz over 0.1 s
+    assert [r.header.sequence for r in reports] == list(range(5))
+    assert all(r.header.service_connection and r.header.source == NM for r in reports)
+    assert (reports[0].control_mode, reports[0].ready_mode, reports[0].safety_mode) == (2, 2, 1)
+    key = {"command_code": 0xE456, "instance_id": confirm.instance_id}
+    client.send(SuspendServiceConnection(**key), to=NM, service=True)
+    assert not any(isinstance(m, ReportVehicleMode) for m in client.step(10))
+    client.send(ActivateServiceConnection(**key), to=NM, service=True)
+    assert any(isinstance(m, ReportVehicleMode) for m in client.step(10))
+    client.send(TerminateServiceConnection(**key), to=NM, service=True)
+    assert not any(isinstance(m, ReportVehicleMode) for m in client.step(10))
+
+
+def test_unsupported_connection_is_refused() -> None:
+    client, _ = controlled()
+    confirm = client.send(CreateServiceConnection(command_code=0x4405, rate_hz=10.0), to=NM,
+                          service=True)[0]
+    assert confirm.response == ServiceConnectionResponse.NOT_SUPPORTED
+
+
+def test_heartbeat_about_once_a_second_to_every_client() -> None:
+    client, other = controlled()
+    other.send(QueryHeartbeatPulse(), to=NM)
+    assert other.of(ReportHeartbeatPulse)
+    client.step(300)
+    beats = [m for m in client.inbox if isinstance(m, ReportHeartbeatPulse)]
+    assert 3 <= len(beats) <= 4
+    assert len(other.of(ReportHeartbeatPulse)) >= 3
+
+
+# --------------------------------------------------------------------------- driving
+
+def test_wrench_efforts_move_the_vehicle_and_queries_report_it() -> None:
+    client, _ = controlled()
+    drive(client, 30.0, 200)
+    velocity = client.send(QueryVelocityState())[0]
+    assert isinstance(velocity, ReportVelocityState)
+    assert velocity.velocity_x_mps == pytest.approx(client.sim.core.plant.speed_mps, abs=1e-6)
+    assert velocity.velocity_x_mps > 1.0
+    pose = client.send(QueryLocalPose())[0]
+    assert isinstance(pose, ReportLocalPose) and pose.x_m > 1.0
+
+
+def test_safestop_pause_brakes_to_a_stop_and_reports_mode_8() -> None:
+    client, _ = controlled()
+    client.send(CreateServiceConnection(command_code=0xE456, rate_hz=100.0), to=NM, service=True)
+    drive(client, 40.0, 300)
+    assert client.sim.core.plant.speed_mps > 2.0
+    client.sim.set_devices(SafetyDevices(safestop="pause"))
+    drive(client, 40.0, 400)                                   # throttle keeps coming: ignored
+    mode = [m for m in client.inbox if isinstance(m, ReportVehicleMode)][-1]
+    assert mode.safety_mode == 8 and mode.safety_devices & 0b10
+    assert abs(client.sim.core.plant.speed_mps) < 0.01
+    assert client.sim.core.plant.brake == pytest.approx(0.5, abs=0.02)   # 50 % hold
+
+
+def test_wrench_command_timeout_is_an_error_pause() -> None:
+    client, _ = controlled()
+    drive(client, 20.0, 10)
+    client.step(60)
+    assert client.sim.mode.safety_mode == "software-pause"
+    assert client.sim.vehicle_mode().safety_devices & 0x80        # errors detected
+    drive(client, 0.0, 2)
+    assert client.sim.mode.safety_mode == "drive-by-wire"
+
+
+def test_discrete_devices_shift_and_start() -> None:
+    client, _ = controlled(ready=False)
+    client.send(SetDiscreteDevices(propulsion_flags=Propulsion.MAIN_POWER | Propulsion.STARTER,
+                                   parking_horn_flags=0, gear=Gear.NEUTRAL))
+    drive(client, 0.0, 200, brake_pct=50.0)
+    plant = client.sim.core.plant
+    assert plant.engine == "running" and plant.gear == "neutral" and not plant.park_brake
+    client.send(SetDiscreteDevices(gear=2))
+    drive(client, 0.0, 100, brake_pct=50.0)
+    assert plant.gear == "drive"
+    client.send(SetDiscreteDevices(gear=77))                  # not a gear of the Escape
+    assert client.sim.stats.invalid == 1
+
+
+def test_motion_profile_mpd_takes_the_pd_tracks_and_lapses_to_a_stop() -> None:
+    sim = make_sim()
+    client = Peer(sim)
+    client.send(RequestComponentControl(authority=6), Resume(), to=MPD)
+    assert sim.pd.controller == MPD and sim.mode.control_mode == "motion-profiles"
+    assert sim.mode.ready_mode == "ready" and sim.mode.safety_mode == "drive-by-wire"
+    ignored = sim.stats.ignored_no_control
+    client.send(SetWrenchEffort.xgv(throttle_pct=80.0, steering_pct=0.0, brake_pct=0.0))
+    assert sim.stats.ignored_no_control == ignored + 1         # the PD belongs to the MPD
+    for _ in range(600):
+        client.send(SetMotionProfile.single(speed_mps=4.0, max_accel_mps2=1.5,
+                                            curvature_1pm=-0.02), to=MPD)
+        client.step()
+    plant = sim.core.plant
+    assert plant.speed_mps == pytest.approx(4.0, abs=0.15)
+    assert plant.curvature_1pm == pytest.approx(-0.02, abs=0.002)
+    client.step(int(4.0 / LAPSE_DECEL_MPS2 / 0.01) + 150)       # no refresh: the motion lapses
+    assert abs(plant.speed_mps) < 0.01
+
+
+def test_estop_disable_overrides_everything() -> None:
+    client, _ = controlled()
+    drive(client, 40.0, 200)
+    client.sim.set_devices(SafetyDevices(estop_button=True))
+    drive(client, 40.0, 100)
+    assert client.sim.mode.safety_mode == "estop-disable"
+    assert client.sim.core.plant.brake > 0.99 and client.sim.core.plant.engine == "off"
+
+
+# --------------------------------------------------------------------------- helpers
+
+def test_gear_codes_round_trip_for_every_preset() -> None:
+    for params in PRESETS.values():
+        codes = gear_codes(params)
+        assert len(set(codes.values())) == len(codes)
+        for name, code in codes.items():
+            assert gear_from_code(params, code) == name
+    escape = gear_codes(PRESETS["escape-hybrid"])
+    assert escape == {"park": 0, "reverse": 129, "neutral": 128, "drive": 2, "low": 1}
+    assert gear_from_code(PRESETS["escape-hybrid"], 200) == "reverse"
+
+
+def test_timestamp_fields() -> None:
+    stamp = jaus_timestamp(3723.456)
+    assert (stamp.day, stamp.hour, stamp.minute, stamp.second, stamp.millisecond) == (1, 1, 2, 3, 456)
+    assert msgspec.structs.astuple(jaus_timestamp(0.0)) == (1, 0, 0, 0, 0)
