@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint bench clean coverage-gate
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -19,8 +19,21 @@ run: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench
 
+# Safety-critical modules (issue 9): 100 % line and branch coverage, enforced.
+SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.watchdog \
+                  overdrive.vehicle.gate overdrive.monitor
+SAFETY_TESTS := tests/test_modes.py tests/test_gate.py tests/test_monitor.py tests/test_watchdog.py \
+                tests/servers/test_speed_table.py tests/servers/test_speed_server.py
+
 test: lint
-	$(PY) -m pytest -n 2 -p no:cacheprovider
+	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock"
+	$(PY) -m pytest -p no:cacheprovider -m wallclock
+	@$(MAKE) --no-print-directory coverage-gate
+
+coverage-gate: $(STAMP)
+	$(PY) -m pytest -q -p no:cacheprovider $(SAFETY_TESTS) --no-header \
+	    $(addprefix --cov=,$(SAFETY_MODULES)) --cov-branch --cov-report=term-missing \
+	    --cov-fail-under=100
 
 bench: $(STAMP)
 	$(PY) bench/run.py

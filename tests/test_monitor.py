@@ -147,3 +147,48 @@ def test_estop_button_stops_the_vehicle_with_full_brake() -> None:
     result = run_scenario(parse_scenario(data), None)
     assert result.summary["violations"] == []
     assert float(result.trace[-1]["brake_pct"]) > 99.0 and result.trace[-1]["engine"] == "off"
+
+
+def test_pedal_and_powertrain_commands_from_intruders_must_be_rejected() -> None:
+    from overdrive.messages import PowertrainCommand
+
+    for msg, topic in ((PedalCommand(throttle_pct=50.0, brake_pct=0.0, source="intruder"), Topic.PEDALS),
+                       (PowertrainCommand(gear="drive", engine_on=True, source="intruder"),
+                        Topic.POWERTRAIN)):
+        monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+        monitor.observe(topic, msg)
+        assert "control" in monitor.finish()[0]
+        fine = Monitor(ESCAPE_HYBRID, 0.8, DT)
+        fine.observe(topic, msg)
+        fine.observe(Topic.NOTICE, Notice(kind="fault", source="speed", code="1"))   # not a rejection
+        fine.observe(Topic.NOTICE, Notice(kind="rejected", source="vehicle", code="no_control"))
+        assert fine.finish() == []
+
+
+def test_invalid_authorization_is_not_held_against_the_vehicle(monitor: Monitor) -> None:
+    monitor.observe(Topic.TRUTH, truth(0.0, 0.0))
+    monitor.observe(Topic.ADVANCE, AdvanceAuthorization(source="bad", distance_m=float("nan")))
+    monitor.observe(Topic.ADVANCE, AdvanceAuthorization(source="neg", distance_m=-1.0))
+    drive(monitor, [5.0])
+    assert monitor.finish() == [] and monitor.authorization_margin_m() is None
+
+
+def test_world_friction_change_tightens_the_ellipse(monitor: Monitor) -> None:
+    from overdrive.vehicle.plant import World
+    from overdrive.vehicle.sim_node import WORLD_TOPIC
+
+    monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
+    assert monitor.finish() == []
+    monitor.observe(WORLD_TOPIC, World(friction=0.2))
+    monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
+    assert "acceleration_ellipse" in monitor.finish()[0]
+
+
+def test_stop_margins_recorded_per_stop(monitor: Monitor) -> None:
+    drive(monitor, [0.0, 1.0], speed=1.0)
+    monitor.observe(Topic.TRUTH, truth(1.0, 0.0))
+    assert monitor.stop_margins_m == [], "a stop without any authorization has no margin"
+    monitor.observe(Topic.ADVANCE, AdvanceAuthorization(source="a", distance_m=4.0))
+    drive(monitor, [2.0, 3.0], speed=1.0)
+    monitor.observe(Topic.TRUTH, truth(3.0, 0.0))
+    assert monitor.stop_margins_m == [pytest.approx(2.0)]

@@ -23,6 +23,8 @@ from overdrive.messages import Topic
 from overdrive.scenario import Scenario, load_scenario, parse_scenario
 from overdrive.sim import run_scenario
 
+pytestmark = pytest.mark.wallclock   # real time: run on an idle machine (Makefile)
+
 ROOT = Path(__file__).resolve().parents[2]
 FINAL_TOLERANCE_M = 0.5          # issue 8 acceptance
 DRIVING_SCENARIO = {

@@ -13,6 +13,8 @@ from overdrive.bus.zenoh_bus import SafeInbox
 from overdrive.messages import Notice, Topic
 from overdrive.runtime_wall import LAG_THRESHOLD, LagMonitor, WallRuntime
 
+pytestmark = pytest.mark.wallclock   # real time: run on an idle machine (Makefile)
+
 
 class FakeClock:
     """A clock that only moves when the runtime sleeps or a node 'works'."""

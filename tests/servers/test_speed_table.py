@@ -184,3 +184,32 @@ def test_docs_fault_table_lists_every_code():
     text = DOC.read_text(encoding="utf-8")
     for code in FaultCode:
         assert f"| {int(code)} | `{code.name}` |" in text
+
+
+PARK_FROM = ["reset", "starting", "startwait", "paused", "runwait", "idle", "shifting"]
+
+
+@pytest.mark.parametrize("state", PARK_FROM)
+def test_parked_requested_from_every_intermediate_state(state):
+    """A client may always ask for parked: the engine stops and the brakes lock."""
+    engine = "off" if state in ("reset", "startwait") else "running"
+    assert classify_event(state, cond(goal="parked", engine=engine)) == "park"
+    assert next_state(state, "park") == "parked"
+
+
+@pytest.mark.parametrize("state", ["runwait", "shifting"])
+def test_paused_requested_on_the_way_to_run(state):
+    assert classify_event(state, cond(goal="paused", gear_neutral=False, gear="high")) == "pause"
+    assert next_state(state, "pause") == "paused"
+
+
+def test_latched_estop_only_allows_parking_once_stopped():
+    latched = dict(latched=True, goal="parked", gear="high", gear_neutral=False)
+    assert classify_event("idle", cond(**latched, stopped=True)) == "park"
+    assert classify_event("idle", cond(**latched, stopped=False)) is None
+    assert classify_event("idle", cond(latched=True, goal="run", gear="high")) is None
+
+
+def test_idle_to_paused_on_request():
+    assert classify_event("idle", cond(goal="paused", gear="high", gear_neutral=False)) == "pause"
+    assert next_state("idle", "pause") == "paused"

@@ -28,6 +28,7 @@ def test_drive_and_xgv_sim_reject_bad_scenarios(tmp_path: Path) -> None:
         assert "interface" in result.output
 
 
+@pytest.mark.wallclock
 def test_xgv_sim_runs_for_its_duration_on_an_ephemeral_port() -> None:
     result = CliRunner().invoke(main, ["xgv-sim", "--port", "0", "--duration-s", "0.2"])
     assert result.exit_code == 0, result.output

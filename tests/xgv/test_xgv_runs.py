@@ -124,6 +124,7 @@ def test_memory_link_drop_window() -> None:
 
 # --------------------------------------------------------------------------- overdrive drive
 
+@pytest.mark.wallclock
 def test_overdrive_drive_against_xgv_sim_in_wall_clock_time(tmp_path: Path) -> None:
     """Both commands as a user runs them: ``overdrive xgv-sim`` in its own process."""
     data = {"name": "drive-e2e", "interface": "jaus", "start": "ready", "duration_s": 13,

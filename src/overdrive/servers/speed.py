@@ -61,6 +61,7 @@ from overdrive.servers.speed_table import (
     next_state,
 )
 from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
+from overdrive.watchdog import Watchdog
 
 SOURCE = "speed"
 INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",
@@ -153,13 +154,12 @@ class SpeedServer:
         self.accel_filt_mps2 = 0.0
         self.last_now_s: float | None = None
         self.first_step_s = 0.0
-        self.last_spss_s: float | None = None
+        self.spss_watchdog = Watchdog(self.config.spss_timeout_s)
         self.last_sensor_s: float | None = None   # last VehicleStatus
         self.last_gps_s: float | None = None
         self.last_wheel_s: float | None = None
         self.last_imu_s: float | None = None
         self.speed_live = False
-        self.spss_lost = False
         self.sensor_lost = False
         # faults and e-stop
         self.client_fault = 0
@@ -193,8 +193,7 @@ class SpeedServer:
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
         for spss in requests:
-            self.last_spss_s = now_s
-            self.spss_lost = False
+            self.spss_watchdog.feed(now_s)
             client_fault_edge |= self._handle_request(now_s, spss, out)
             reply_faults.append((self.fault, self.fault_message))
         watchdog_edge = self._watchdog(now_s, out)
@@ -402,14 +401,11 @@ class SpeedServer:
         """SPSS and sensor timeouts; True on the period an e-stop starts."""
         cfg = self.config
         edge = False
-        if self.last_spss_s is not None:
-            silent = now_s - self.last_spss_s >= cfg.spss_timeout_s - TIME_EPS_S
-            if silent and not self.spss_lost:
-                self._raise_fault(now_s, FaultCode.SPSS_TIMEOUT, fault_message(
-                    FaultCode.SPSS_TIMEOUT, timeout_s=cfg.spss_timeout_s), out)
-                self._estop(f"no SPSS for {cfg.spss_timeout_s:.3f} s", out)
-                edge = True
-            self.spss_lost = silent
+        if self.spss_watchdog.check(now_s):
+            self._raise_fault(now_s, FaultCode.SPSS_TIMEOUT, fault_message(
+                FaultCode.SPSS_TIMEOUT, timeout_s=cfg.spss_timeout_s), out)
+            self._estop(f"no SPSS for {cfg.spss_timeout_s:.3f} s", out)
+            edge = True
         assert self.last_sensor_s is not None
         silent = (now_s - self.last_sensor_s >= cfg.sensor_timeout_s - TIME_EPS_S
                   or (not self.speed_live and now_s - self.first_step_s

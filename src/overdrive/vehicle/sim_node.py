@@ -34,6 +34,7 @@ from overdrive.vehicle.gate import GateLimits, gate_pedals, gate_steer
 from overdrive.vehicle.modes import PAUSE_MODES, computer_axes, safety_mode
 from overdrive.vehicle.plant import STOPPED_MPS, ActuatorFaults, Plant, World
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.watchdog import Watchdog
 
 PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration" (seed 000); XGV default-like
 PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort
@@ -94,9 +95,7 @@ class VehicleSim:
         self.last_readings: dict[str, Any] = {}
         self.rejected_sources = 0
         self.gate_interventions: dict[str, int] = {}
-        self.command_timeout_s = command_timeout_s
-        self.last_command_s: float | None = None
-        self.timed_out = False
+        self.command_watchdog = Watchdog(command_timeout_s) if command_timeout_s else None
         self.command_timeouts = 0
         self.software_ready = True   # False: the XGV's control/ready-mode software pause (xgv.py)
         self.mode = safety_mode(self.devices)
@@ -109,8 +108,8 @@ class VehicleSim:
             if topic == Topic.PEDALS:
                 if msg.source in lim.pedal_sources:
                     self.throttle_pct, self.brake_pct = msg.throttle_pct, msg.brake_pct
-                    if msg.source in WATCHED_SOURCES:
-                        self.last_command_s = self.now_s
+                    if msg.source in WATCHED_SOURCES and self.command_watchdog is not None:
+                        self.command_watchdog.feed(self.now_s)
                 else:
                     self._reject(msg, out)
             elif topic == Topic.STEER:
@@ -208,18 +207,16 @@ class VehicleSim:
         """A drive-by-wire vehicle must not hold the last throttle when its controller dies:
         once a periodic controller has sent pedal commands, silence longer than the timeout
         means throttle 0 and full brake (one ``estop`` notice) until commands resume."""
-        if self.command_timeout_s is None or self.last_command_s is None:
+        watchdog = self.command_watchdog
+        if watchdog is None:
             return
-        silent = now_s - self.last_command_s > self.command_timeout_s + 1e-9
-        if silent:
+        if watchdog.check(now_s):
+            self.command_timeouts += 1
+            out.append((Topic.NOTICE, Notice(
+                kind="estop", source=self.name, code="command_timeout",
+                reason=f"no pedal command for {watchdog.timeout_s} s: full brake")))
+        if watchdog.lost:
             self.throttle_pct, self.brake_pct = 0.0, 100.0
-            if not self.timed_out:
-                self.command_timeouts += 1
-                out.append((Topic.NOTICE, Notice(
-                    kind="estop", source=self.name, code="command_timeout",
-                    reason=f"no pedal command for {now_s - self.last_command_s:.3f} s "
-                           f"(timeout {self.command_timeout_s} s): full brake")))
-        self.timed_out = silent
 
     def _count(self, reason: str) -> None:
         self.gate_interventions[reason] = self.gate_interventions.get(reason, 0) + 1
