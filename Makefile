@@ -17,7 +17,7 @@ run: $(STAMP)
 	$(VENV)/bin/overdrive sim scenarios/demo.yaml
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/ruff check src tests bench fuzz
 
 # Safety-critical modules (issue 9): 100 % line and branch coverage, enforced.
 SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.watchdog \

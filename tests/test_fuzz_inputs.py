@@ -1,0 +1,82 @@
+"""Fuzzing every user-facing validator: scenario data and CLI arguments.
+
+Whatever arrives, the outcome is a validated object or the documented error (ScenarioError,
+exit code 2 with a one-line message), never another exception and never a traceback.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import yaml
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from overdrive.cli import main
+from overdrive.scenario import EVENT_KINDS, ScenarioError, parse_scenario
+
+scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6),
+                    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=12))
+keys = st.one_of(st.sampled_from(["name", "vehicle", "duration_s", "world", "events", "expect",
+                                  "friction", "grade_percent", "obstacles", "at_s", "preset",
+                                  "distance_m", "maxspeed_mps", "curvature_1pm", "speed_mps",
+                                  "seed", "start", "interface", "control", "sweep", *EVENT_KINDS]),
+                 st.text(max_size=8))
+data = st.recursive(scalars, lambda children: st.one_of(
+    st.lists(children, max_size=4), st.dictionaries(keys, children, max_size=5)), max_leaves=20)
+
+
+@settings(max_examples=600, suppress_health_check=[HealthCheck.too_slow])
+@given(data)
+def test_scenario_validator_only_raises_scenario_error(raw) -> None:
+    try:
+        parse_scenario(raw, "fuzz.yaml")
+    except ScenarioError as exc:
+        assert str(exc).startswith("fuzz.yaml")
+
+
+event = st.fixed_dictionaries({"at_s": st.one_of(st.floats(-1, 100), st.sampled_from([math.nan, math.inf]))},
+                              optional={k: st.one_of(scalars, st.dictionaries(keys, scalars, max_size=4))
+                                        for k in EVENT_KINDS})
+
+
+@settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(event, max_size=4), st.dictionaries(keys, scalars, max_size=3))
+def test_structured_scenarios_validate_or_name_a_field(events, world) -> None:
+    raw = {"name": "f", "duration_s": 5, "events": events, "world": world}
+    try:
+        scenario = parse_scenario(raw, "fuzz.yaml")
+    except ScenarioError as exc:
+        assert exc.field or exc.reason
+        return
+    for e in scenario.events:    # what validates is finite and in time order
+        assert math.isfinite(e.at_s) and 0 <= e.at_s <= 5
+
+
+argv_words = st.sampled_from(["sim", "sweep", "jaus", "decode", "encode", "replay", "plot",
+                              "--seed", "--out", "--runs", "--jobs", "-1", "0", "nan", "inf",
+                              "zz", "01", "--quiet", "--realtime", "--xgv", "drive",
+                              "move-server", "-s", "--duration-s", "1e309", "", "--help"])
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(argv_words, max_size=5))
+def test_cli_arguments_never_crash(tmp_path_factory, argv) -> None:
+    if "move-server" in argv and "-s" in argv and "--help" not in argv:
+        return   # a valid simulation run: covered elsewhere, too slow for fuzzing
+    out = tmp_path_factory.mktemp("cli")
+    if "--out" in argv:
+        argv = [str(out / "o") if a == "--out" else a for a in argv]
+    result = CliRunner().invoke(main, argv)
+    assert result.exit_code in (0, 1, 2), (argv, result.output)
+    assert "Traceback" not in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), (argv, result.exception)
+
+
+def test_shipped_scenarios_round_trip_through_yaml() -> None:
+    for path in sorted((Path(__file__).resolve().parent.parent / "scenarios").rglob("*.yaml")):
+        raw = yaml.safe_load(path.read_text())
+        assert parse_scenario(raw, str(path)).spec == parse_scenario(
+            yaml.safe_load(yaml.safe_dump(raw)), str(path)).spec
