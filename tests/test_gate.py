@@ -60,3 +60,45 @@ def test_rate_limit_and_clamp_are_pure() -> None:
     assert rate_limit(-10.0, 0.0, 100.0, 0.01) == -1.0
     assert rate_limit(0.5, 0.0, 100.0, 0.01) == 0.5
     assert clamp(math.nan, 0.0, 1.0) == 0.0 and clamp(2.0, 0.0, 1.0) == 1.0
+
+
+PEDAL_CASES = [
+    # (throttle, brake) -> (throttle, brake, reason): exact, including the reported reason
+    ((100.0, 0.0), (100.0, 0.0, "")),
+    ((0.0, 100.0), (0.0, 100.0, "")),
+    ((0.0, 0.0), (0.0, 0.0, "")),
+    ((100.5, 0.0), (100.0, 0.0, "throttle out of range")),
+    ((-0.5, 0.0), (0.0, 0.0, "throttle out of range")),
+    ((0.0, 100.5), (0.0, 100.0, "brake out of range")),
+    ((0.0, -0.5), (0.0, 0.0, "brake out of range")),
+    ((math.nan, 0.0), (0.0, 0.0, "throttle not finite")),
+    ((math.inf, 0.0), (0.0, 0.0, "throttle not finite")),
+    ((0.0, math.nan), (0.0, 100.0, "brake not finite")),
+    ((0.0, -math.inf), (0.0, 100.0, "brake not finite")),
+    ((20.0, 5.0), (0.0, 5.0, "throttle while braking")),
+]
+
+
+@pytest.mark.parametrize(("command", "expected"), PEDAL_CASES)
+def test_pedal_gate_exact(command, expected) -> None:
+    assert gate_pedals(*command) == expected
+
+
+STEER_CASES = [
+    # (command, last) -> (applied, reason) with a rate budget of 0.5 % per 10 ms
+    ((100.0, 100.0), (100.0, "")),
+    ((-100.0, -100.0), (-100.0, "")),
+    ((150.0, 100.0), (100.0, "steer out of range")),
+    ((-150.0, -100.0), (-100.0, "steer out of range")),
+    ((-100.5, -100.0), (-100.0, "steer out of range")),
+    ((math.nan, 12.0), (12.0, "steer not finite")),
+    ((-math.inf, 12.0), (12.0, "steer not finite")),
+    ((10.0, 0.0), (0.5, "steer rate")),
+    ((0.5, 0.0), (0.5, "")),
+]
+
+
+@pytest.mark.parametrize(("command", "expected"), STEER_CASES)
+def test_steer_gate_exact(command, expected) -> None:
+    applied, reason = gate_steer(command[0], command[1], LIMITS, 0.01)
+    assert (applied, reason) == (pytest.approx(expected[0]), expected[1])
