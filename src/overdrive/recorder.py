@@ -212,7 +212,3 @@ class Recorder:
 
 _ROW_FORMAT = ("%.2f," + "%.4f," * 10 + "%s," * 5 + "%.4f," * 5 + "%s," * 4 + "%s\n")
 """One trace row (``TRACE_COLUMNS``) for ``Recorder._write_fast_row``."""
-
-
-def finite_or_none(value: float) -> float | None:
-    return value if math.isfinite(value) else None

@@ -49,6 +49,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
 )
+from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
 SOURCE = "driving"
@@ -100,14 +101,6 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
 
 # --------------------------------------------------------------------------- validation
 
-def _finite(*values: Any) -> bool:
-    """Every value a finite real number (bools are not numbers here)."""
-    for v in values:
-        if type(v) is not float and (not isinstance(v, (int, float)) or isinstance(v, bool)):
-            return False
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 def validate_steering(msg: Any, params: VehicleParams,
@@ -119,7 +112,7 @@ def validate_steering(msg: Any, params: VehicleParams,
     """
     if not isinstance(msg, SteeringRequest):
         return f"steering: not a SteeringRequest ({type(msg).__name__})"
-    if not _finite(msg.curvature_1pm):
+    if not finite(msg.curvature_1pm):
         return f"steering: curvature_1pm {msg.curvature_1pm} is not finite"
     max_k = params.max_curvature_1pm if max_curvature_1pm is None else max_curvature_1pm
     if abs(msg.curvature_1pm) > max_k:
@@ -137,7 +130,7 @@ def validate_max_speed(msg: Any) -> str:
         return f"max_speed: not a MaxSpeed ({type(msg).__name__})"
     if not _valid_source(msg.source):
         return "max_speed: empty source"
-    if not _finite(msg.speed_mps):
+    if not finite(msg.speed_mps):
         return f"max_speed: speed_mps {msg.speed_mps} from {msg.source!r} is not finite"
     if msg.speed_mps < 0.0:
         return f"max_speed: speed_mps {msg.speed_mps} from {msg.source!r} is negative"
@@ -151,7 +144,7 @@ def validate_advance(msg: Any) -> str:
         return "advance: empty source"
     if not isinstance(msg.reverse, bool):
         return f"advance: reverse {msg.reverse!r} is not a bool"
-    if not _finite(msg.distance_m):
+    if not finite(msg.distance_m):
         return f"advance: distance_m {msg.distance_m} from {msg.source!r} is not finite"
     if msg.distance_m < 0.0:
         return f"advance: distance_m {msg.distance_m} from {msg.source!r} is negative"
@@ -173,7 +166,7 @@ def validate_drive_mode(msg: Any) -> str:
 def validate_gps(msg: Any) -> str:
     if not isinstance(msg, GpsIns):
         return f"gps_ins: not a GpsIns ({type(msg).__name__})"
-    if not _finite(msg.speed_mps, msg.pitch_rad, msg.roll_rad, msg.odometer_m):
+    if not finite(msg.speed_mps, msg.pitch_rad, msg.roll_rad, msg.odometer_m):
         return "gps_ins: speed, attitude or odometer not finite"
     return ""
 
@@ -181,7 +174,7 @@ def validate_gps(msg: Any) -> str:
 def validate_speed_state(msg: Any) -> str:
     if not isinstance(msg, SpeedState):
         return f"speed_state: not a SpeedState ({type(msg).__name__})"
-    if msg.state not in SPEED_STATES or not _finite(msg.speed_mps):
+    if msg.state not in SPEED_STATES or not finite(msg.speed_mps):
         return f"speed_state: state {msg.state!r} unknown or speed not finite"
     return ""
 

@@ -66,6 +66,7 @@ from overdrive.messages import (
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, check_command, direction_of
+from overdrive.validation import finite
 from overdrive.vehicle.presets import GearTable, VehicleParams
 
 SOURCE = "move"
@@ -267,31 +268,31 @@ class MoveServer:
         return self._ignore
 
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if _finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
+        if finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
             self.gps, self.gps_s = msg, now_s
         else:
             self._finite_sensor(False, "gps_ins: not finite", out)
 
     def _imu(self, now_s: float, msg: Imu, out: list) -> None:
-        if _finite(msg.accel_x_mps2, msg.accel_z_mps2):
+        if finite(msg.accel_x_mps2, msg.accel_z_mps2):
             self.imu = msg
         else:
             self._finite_sensor(False, "imu: not finite", out)
 
     def _radar(self, now_s: float, msg: Radar, out: list) -> None:
-        if _finite(msg.range_m):
+        if finite(msg.range_m):
             self.radar = msg
         else:
             self._finite_sensor(False, "radar: range not finite", out)
 
     def _status(self, now_s: float, msg: VehicleStatus, out: list) -> None:
-        if _finite(msg.steer_pct, msg.throttle_pct, msg.brake_pct):
+        if finite(msg.steer_pct, msg.throttle_pct, msg.brake_pct):
             self.status = msg
         else:
             self._finite_sensor(False, "vehicle_status: not finite", out)
 
     def _wheel(self, now_s: float, msg: WheelSpeed, out: list) -> None:
-        if _finite(msg.speed_mps):
+        if finite(msg.speed_mps):
             self.wheel_mps = msg.speed_mps
         else:
             self._finite_sensor(False, "wheel_speed: not finite", out)
@@ -303,7 +304,7 @@ class MoveServer:
         self.driving = msg
 
     def _steer_cmd(self, now_s: float, msg: SteerCommand, out: list) -> None:
-        if _finite(msg.steer_pct):
+        if finite(msg.steer_pct):
             self.steer_cmd_pct = msg.steer_pct
 
     def _ignore(self, now_s: float, msg: Any, out: list) -> None:
@@ -610,14 +611,6 @@ class MoveServer:
                 self.next_estimates_s = now_s + cfg.estimates_period_s
 
 
-def _finite(*values: Any) -> bool:
-    """Every value a finite real number (bools are not numbers here)."""
-    for v in values:
-        if type(v) is not float and (not isinstance(v, (int, float)) or isinstance(v, bool)):
-            return False
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 __all__ = ["EVENTS", "PHASES", "TRANSITIONS", "MoveServer", "MoveServerConfig",

@@ -29,6 +29,7 @@ import msgspec
 
 from overdrive.dynamics import Ellipse, stopping_distance_m
 from overdrive.messages import MoveCommand
+from overdrive.validation import finite
 from overdrive.vehicle.presets import VehicleParams
 
 ReplyCode = Literal["ok", "infeasible", "busy", "not_ready", "invalid"]
@@ -66,8 +67,6 @@ def direction_of(kind: str) -> str:
     return "reverse" if kind == "reverse" else "forward"
 
 
-def _finite_number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def invalid_reason(cmd: object) -> str:
@@ -80,7 +79,7 @@ def invalid_reason(cmd: object) -> str:
         return ""
     for name in ("distance_m", "maxspeed_mps", "curvature_1pm"):
         value = getattr(cmd, name)
-        if not _finite_number(value):
+        if not finite(value):
             return f"{name} {value!r} is not a finite number"
     if cmd.distance_m < 0.0:
         return f"distance_m {cmd.distance_m} is negative"

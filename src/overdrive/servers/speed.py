@@ -60,6 +60,7 @@ from overdrive.servers.speed_table import (
     fault_message,
     next_state,
 )
+from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
 from overdrive.watchdog import Watchdog
 
@@ -100,11 +101,6 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
     gains: LongitudinalGains | None = None  # None: the preset's tuned gains (speed_control.GAINS)
 
 
-def _finite(*values: float) -> bool:
-    for v in values:  # noqa: SIM110 - a plain loop: no generator per sensor message
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 class SpeedServer:
@@ -241,21 +237,21 @@ class SpeedServer:
         return self._ignore_input
 
     def _status_input(self, now_s: float, msg: VehicleStatus, out: list) -> None:
-        if self._accept_input(_finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
+        if self._accept_input(finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
                               "vehicle_status: rpm or pedal not finite", out):
             self.status, self.last_sensor_s = msg, now_s
 
     def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if self._accept_input(_finite(msg.speed_mps, msg.pitch_rad),
+        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad),
                               "gps_ins: speed or pitch not finite", out):
             self.gps, self.last_gps_s = msg, now_s
 
     def _wheel_input(self, now_s: float, msg: WheelSpeed, out: list) -> None:
-        if self._accept_input(_finite(msg.speed_mps), "wheel_speed: not finite", out):
+        if self._accept_input(finite(msg.speed_mps), "wheel_speed: not finite", out):
             self.wheel_mps, self.last_wheel_s = msg.speed_mps, now_s
 
     def _imu_input(self, now_s: float, msg: Imu, out: list) -> None:
-        if self._accept_input(_finite(msg.accel_x_mps2), "imu: accel_x not finite", out):
+        if self._accept_input(finite(msg.accel_x_mps2), "imu: accel_x not finite", out):
             self.imu, self.last_imu_s = msg, now_s
 
     def _ignore_input(self, now_s: float, msg: Any, out: list) -> None:
