@@ -57,7 +57,7 @@ CLOCK_TOPIC = "launch/clock"
 CLOCK_PERIOD_S = 0.1            # a (re)started node waits at most this long for the epoch
 START_LEAD_S = 0.3              # epoch this far ahead of the first clock message: all nodes start at t=0
 READY_TIMEOUT_S = 20.0          # nodes must be up (liveliness) within this
-STOP_GRACE_S = 5.0              # SIGTERM -> SIGKILL of the process group
+STOP_GRACE_S = 10.0             # SIGTERM -> SIGKILL of the process group (a loaded host needs time)
 VEHICLE_COMMAND_TIMEOUT_S = COMMAND_TIMEOUT_S  # the vehicle brakes on pedal-command silence (VehicleSim)
 
 NODE_CLASSES = {             # CLI name -> node name (the bus sender) as built by sim.build_nodes

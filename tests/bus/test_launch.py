@@ -137,6 +137,7 @@ def test_driving_module_scenario_over_processes_matches_embedded_run_and_refuses
     assert rogue and rogue[0].returncode == 0, rogue[0].stderr if rogue else "never published"
     rejected = [e for e in summary["events"] if e["kind"] == "rejected" and e.get("code") == "publisher"]
     assert {e["source"] for e in rejected} == {"vehicle", "scenario"}, "each receiving bus refused"
+    assert "vehicle-sim" in result.reports, ("no report from vehicle-sim", summary["launch"])
     assert result.reports["vehicle-sim"]["bus"]["rejected"] == {"vehicle/pedals from 'cli'": 20}
     assert result.exit_code == 0, summary["violations"]
     assert set(summary["launch"]["nodes"]) == {"vehicle-sim", "speed", "driving"}
