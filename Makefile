@@ -31,7 +31,7 @@ test: lint
 	@$(MAKE) --no-print-directory coverage-gate
 
 coverage-gate: $(STAMP)
-	$(PY) -m pytest -q -p no:cacheprovider $(SAFETY_TESTS) --no-header \
+	$(PY) -m pytest -p no:cacheprovider $(SAFETY_TESTS) --no-header \
 	    $(addprefix --cov=,$(SAFETY_MODULES)) --cov-branch --cov-report=term-missing \
 	    --cov-fail-under=100
 
