@@ -171,3 +171,12 @@ def test_not_keeping_up_is_sticky(preset) -> None:
         monitor_update(mon, i * DT, goal_speed_mps=6.0, speed_mps=3.0, wheel_speed_mps=3.0,
                        throttle_pct=95.0)
     assert "sticky" in mon.active and "not keeping up" in mon.active["sticky"].reason
+
+
+@pytest.mark.parametrize(("gps_age_s", "sticky"), [(0.0, True), (0.05, True), (0.06, False),
+                                                    (0.15, False)])
+def test_wheel_vs_ground_slip_only_against_fresh_gps(preset, gps_age_s: float, sticky: bool) -> None:
+    """A stale GPS/INS speed during a dropout is not evidence of slip (no spurious reduction)."""
+    mon = ConditionMonitor(preset)
+    monitor_update(mon, 0.0, speed_mps=7.9, wheel_speed_mps=6.7, gps_age_s=gps_age_s)
+    assert ("sticky" in mon.active) == sticky

@@ -48,6 +48,8 @@ class ConditionConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, k
     slowdown_factor: float = 0.8
     slowdown_hold_s: float = 2.0
     gps_timeout_s: float = 0.2        # same as the driving module's sensor timeout
+    slip_gps_fresh_s: float = 0.05    # wheel vs ground speed only against fresh GPS/INS (5 samples):
+                                      # a stale ground speed during a dropout is not slip
 
 
 class Reduction(msgspec.Struct, frozen=True):
@@ -118,7 +120,7 @@ class ConditionMonitor:
                                        f"too steep: pitch {math.degrees(pitch):.1f} deg")
 
         reason = ""
-        if wheel_speed_mps is not None and v > cfg.slip_min_mps:
+        if wheel_speed_mps is not None and v > cfg.slip_min_mps and gps_age_s <= cfg.slip_gps_fresh_s:
             diff = abs(wheel_speed_mps - speed_mps)
             if diff > max(cfg.slip_min_mps, cfg.slip_fraction * v):
                 reason = f"wheel speed {wheel_speed_mps:.2f} vs ground {speed_mps:.2f} m/s"
