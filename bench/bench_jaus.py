@@ -28,6 +28,7 @@ import time
 from collections import Counter
 from typing import Any
 
+from overdrive.fuzzing import mutate
 from overdrive.jaus import (
     Header,
     Horn,
@@ -178,26 +179,6 @@ def corpus(rng: random.Random, size: int = 400) -> list[bytes]:
     while len(datagrams) < size:
         datagrams.append(encode_datagram(rng.sample(messages, rng.randint(2, 5))))
     return datagrams
-
-
-def mutate(data: bytes, rng: random.Random) -> bytes:
-    buf = bytearray(data)
-    for _ in range(rng.randint(1, 4)):
-        choice = rng.randrange(6)
-        at = rng.randrange(len(buf) + 1)
-        if choice == 0 and buf:
-            buf[at % len(buf)] ^= 1 << rng.randrange(8)
-        elif choice == 1 and buf:
-            buf[at % len(buf)] = rng.choice((0x00, 0xFF, 0x01, 0x10, 0x80, rng.randrange(256)))
-        elif choice == 2:
-            buf[at:at] = rng.randbytes(rng.randint(1, 8))
-        elif choice == 3:
-            del buf[at : at + rng.randint(1, 8)]
-        elif choice == 4:
-            del buf[at:]
-        else:
-            buf += rng.randbytes(rng.randint(1, 16))
-    return bytes(buf)
 
 
 def fuzz(count: int, seed: int) -> dict[str, Any]:

@@ -22,6 +22,8 @@ from collections.abc import Callable
 
 import yaml
 
+from overdrive.fuzzing import mutate
+
 
 def jaus_target(data: bytes) -> None:
     from overdrive.jaus import JausError, decode, decode_datagram
@@ -87,23 +89,6 @@ def corpus(name: str) -> list[bytes]:
             registry.encode(SetSpeed(speed_mps=1, accel_mps2=1, gear="drive", state="run"), "x")]
 
 
-def mutate(rng: random.Random, data: bytes) -> bytes:
-    buf = bytearray(data)
-    for _ in range(rng.randint(1, 8)):
-        op = rng.randrange(4)
-        if op == 0 and buf:                                  # flip a byte
-            buf[rng.randrange(len(buf))] = rng.randrange(256)
-        elif op == 1:                                        # insert bytes
-            at = rng.randint(0, len(buf))
-            buf[at:at] = rng.randbytes(rng.randint(1, 8))
-        elif op == 2 and buf:                                # delete a run
-            at = rng.randrange(len(buf))
-            del buf[at:at + rng.randint(1, 16)]
-        else:                                                # truncate
-            buf = buf[:rng.randint(0, len(buf))]
-    return bytes(buf)
-
-
 def run_random(name: str, target: Callable[[bytes], None], seconds: float, seed: int) -> int:
     """Mutate valid inputs (and try random bytes) until the time is up."""
     rng = random.Random(seed)
@@ -111,7 +96,7 @@ def run_random(name: str, target: Callable[[bytes], None], seconds: float, seed:
     deadline = time.monotonic() + seconds
     count = 0
     while time.monotonic() < deadline:
-        data = rng.randbytes(rng.randint(0, 64)) if rng.random() < 0.1 else mutate(rng, rng.choice(seeds))
+        data = rng.randbytes(rng.randint(0, 64)) if rng.random() < 0.1 else mutate(rng.choice(seeds), rng)
         try:
             target(data)
         except Exception:

@@ -11,6 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from jaus_strategies import any_message
 
+from overdrive.fuzzing import mutate
 from overdrive.jaus import (
     JausDecodeError,
     Message,
@@ -133,27 +134,6 @@ def check_only_decode_errors(data: bytes) -> None:
 def test_fuzz_random_bytes(data: bytes) -> None:
     check_only_decode_errors(data)
     check_only_decode_errors(b"\x01\x00\x00" + data)
-
-
-def mutate(data: bytes, rng: random.Random) -> bytes:
-    """A few random edits: flip bits, overwrite, insert, delete, truncate, extend."""
-    buf = bytearray(data)
-    for _ in range(rng.randint(1, 4)):
-        choice = rng.randrange(6)
-        at = rng.randrange(len(buf) + 1)
-        if choice == 0 and buf:
-            buf[at % len(buf)] ^= 1 << rng.randrange(8)
-        elif choice == 1 and buf:
-            buf[at % len(buf)] = rng.choice((0x00, 0xFF, 0x01, 0x10, 0x80, rng.randrange(256)))
-        elif choice == 2:
-            buf[at:at] = bytes(rng.randrange(256) for _ in range(rng.randint(1, 8)))
-        elif choice == 3:
-            del buf[at : at + rng.randint(1, 8)]
-        elif choice == 4:
-            del buf[at:]
-        else:
-            buf += bytes(rng.randrange(256) for _ in range(rng.randint(1, 16)))
-    return bytes(buf)
 
 
 @settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
