@@ -20,9 +20,9 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench fuzz
 
 # Safety-critical modules (issue 9): 100 % line and branch coverage, enforced.
-SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.watchdog \
-                  overdrive.vehicle.gate overdrive.monitor
-SAFETY_TESTS := tests/test_modes.py tests/test_gate.py tests/test_monitor.py tests/test_watchdog.py \
+SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.safety.watchdog \
+                  overdrive.safety.gate overdrive.safety.monitor
+SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_monitor.py tests/safety/test_watchdog.py \
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py
 
 test: lint

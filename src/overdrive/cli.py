@@ -128,6 +128,12 @@ def print_sweep(report: dict, out: Path) -> None:
     for worst in report["worst"][:3]:
         click.echo(f"worst: run {worst['run']} (seed {worst['seed']}), margin "
                    f"{worst['authorization_margin_m']} m: {worst['replay']}")
+    for rule, runs in report["violations_by_rule"].items():
+        click.echo(f"rule {rule}: broken in {runs} runs")
+    faults = {k: v for k, v in report["runs_by_fault"].items() if k != "none" or len(report["runs_by_fault"]) > 1}
+    for fault, row in faults.items():
+        rules = ", ".join(f"{k} {n}" for k, n in row["rules"].items()) or "-"
+        click.echo(f"fault {fault}: {row['violating']} of {row['runs']} runs violating ({rules})")
     click.echo(f"{report['violations']} violations in {report['runs']} runs")
     click.echo(f"results: {out}")
 

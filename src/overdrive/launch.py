@@ -467,10 +467,9 @@ class Launch:
 
     def run(self, on_tick: Callable[[float], None] | None = None) -> LaunchResult:
         """Play the scenario in wall-clock time, stop the nodes, write the run folder."""
-        from overdrive.monitor import Monitor
         from overdrive.player import ScenarioPlayer, world_from_spec
         from overdrive.recorder import Recorder
-        from overdrive.sim import make_summary
+        from overdrive.sim import add_judgement, make_monitor, make_summary
 
         assert self.bus is not None, "call start() first"
         scenario, spec = self.scenario, self.scenario.spec
@@ -484,9 +483,12 @@ class Launch:
                 trace_file = stack.enter_context(
                     open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
             recorder = self.recorder = Recorder(trace_file, keep_rows=False)
-            monitor = Monitor(scenario.vehicle, spec.world.friction, DEFAULT_PERIOD_S)
+            monitor = make_monitor(scenario, DEFAULT_PERIOD_S)
             self.bus.tap(recorder.observe)
             self.bus.tap(monitor.observe)
+            # across processes the launcher receives what crossed the process boundary after the
+            # publisher's channel faults: what the speed server was delivered, too
+            self.bus.tap(monitor.observe_delivered)
             epoch = time.monotonic() + START_LEAD_S
             clock = LaunchClock(epoch_monotonic_s=epoch, scenario=scenario.name,
                                 duration_s=spec.duration_s)
@@ -521,8 +523,7 @@ class Launch:
         summary = make_summary(scenario, recorder, spec.duration_s, wall_time_s, [stand_in],
                                monitor.finish(), channel_counts)
         summary["violations"].extend(self.violations)
-        if hasattr(monitor, "stop_margins_m"):      # as overdrive sim reports it
-            summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
+        add_judgement(summary, monitor)
         summary["launch"] = {
             "mode": "multi-process (zenoh, wall clock)",
             "endpoint": self.listen,

@@ -232,6 +232,21 @@ FrictionRange = tuple[Friction, Friction]
 GradeRange = tuple[Grade, Grade]
 
 
+SweptFault = Literal[
+    "sensor_freeze", "sensor_dropout", "throttle_stuck", "throttle_weak", "brake_weak",
+    "brake_slow", "steering_stuck", "steering_slow", "delay_move", "delay_advance", "reorder_move",
+]
+SWEPT_FAULTS: tuple[str, ...] = SweptFault.__args__   # type: ignore[attr-defined]
+
+
+class FaultSweepSpec(Spec, frozen=True):
+    """Faults a sweep draws: with ``probability`` one fault of ``kinds``, at a time in ``at_s``."""
+
+    probability: Annotated[float, msgspec.Meta(ge=0.0, le=1.0)] = 1.0
+    kinds: Annotated[tuple[SweptFault, ...], msgspec.Meta(min_length=1)] = SWEPT_FAULTS
+    at_s: tuple[Time, Time] = (1.0, 10.0)
+
+
 class SweepSpec(Spec, frozen=True):
     """Sampling ranges for ``overdrive sweep`` (uniform); ``null`` keeps the file's value."""
 
@@ -240,6 +255,7 @@ class SweepSpec(Spec, frozen=True):
     obstacle_jitter_m: Annotated[float, msgspec.Meta(ge=0.0, le=1000.0)] = 3.0
     event_jitter_s: Annotated[float, msgspec.Meta(ge=0.0, le=3600.0)] = 0.5
     drop_expectations: bool = False
+    faults: FaultSweepSpec | None = None
 
 
 class ScenarioFile(Spec, frozen=True):

@@ -19,10 +19,10 @@ from typing import Any
 from overdrive.bus.local import LocalBus
 from overdrive.expect import check
 from overdrive.messages import Topic
-from overdrive.monitor import Monitor
 from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.recorder import Recorder
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
+from overdrive.safety.monitor import Monitor
 from overdrive.scenario import (
     DRIVING_KINDS,
     MOVE_KINDS,
@@ -141,8 +141,9 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         bus.tap(recorder.observe)
         for tap in taps:
             bus.tap(tap.observe)
-        monitor = Monitor(scenario.vehicle, scenario.spec.world.friction, period_s)
+        monitor = make_monitor(scenario, period_s)
         bus.tap(monitor.observe)
+        bus.tap_delivered(monitor.observe_delivered)
         runtime = LockstepRuntime(mcap.wrap(nodes) if mcap else nodes, bus, period_s)
         duration_s = scenario.spec.duration_s
         wall_start = time.monotonic()
@@ -164,7 +165,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         wall_time_s = time.monotonic() - wall_start
     summary = make_summary(scenario, recorder, runtime.now_s - period_s, wall_time_s, nodes,
                            monitor.finish(), faults.counts)
-    summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
+    add_judgement(summary, monitor)
     exit_code = 1 if summary["violations"] else 0
     if out_path is not None:
         (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
@@ -173,6 +174,19 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
             plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
     return RunResult(summary=summary, exit_code=exit_code, out_dir=out_path,
                      trace=recorder.rows, nodes={n.name: n for n in nodes})
+
+
+def make_monitor(scenario: Scenario, period_s: float) -> Monitor:
+    """The safety judge for ``scenario`` (the scenario is the SPSS client in set_speed runs)."""
+    return Monitor(scenario.vehicle, scenario.spec.world.friction, period_s,
+                   spss_is_command="set_speed" in scenario.event_kinds)
+
+
+def add_judgement(summary: dict[str, Any], monitor: Monitor) -> None:
+    """The judge's records beyond the violation strings: details, notes, stop margins."""
+    summary["violation_details"] = monitor.details()
+    summary["judge_notes"] = monitor.notes
+    summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
 
 
 def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,

@@ -34,8 +34,50 @@ JITTERED_KINDS = frozenset({
 """Event kinds whose times are sampled: faults and safety devices, never the commands."""
 
 
+def fault_event(kind: str, at_s: float, rng: random.Random) -> dict[str, Any]:
+    """The scenario event of one swept fault kind, its parameters drawn from ``rng``."""
+    for_s = round(rng.uniform(0.5, 5.0), 3)
+    if kind in ("sensor_freeze", "sensor_dropout"):
+        body: dict[str, Any] = {"sensor": {"name": rng.choice(("gps", "wheel_speed", "imu", "radar")),
+                                           "fault": kind.removeprefix("sensor_"), "for_s": for_s}}
+    elif kind == "throttle_stuck":
+        body = {"actuator": {"throttle": {"stuck": True}}}
+    elif kind in ("throttle_weak", "brake_weak"):
+        pedal = kind.removesuffix("_weak")
+        body = {"actuator": {pedal: {"effectiveness": round(rng.uniform(0.3, 0.8), 3)}}}
+    elif kind == "brake_slow":
+        body = {"actuator": {"brake": {"lag_scale": round(rng.uniform(2.0, 5.0), 3)}}}
+    elif kind == "steering_stuck":
+        body = {"actuator": {"steering": {"stuck": True}}}
+    elif kind == "steering_slow":
+        body = {"actuator": {"steering": {"rate_scale": round(rng.uniform(0.2, 0.6), 3)}}}
+    elif kind in ("delay_move", "delay_advance"):
+        body = {"delay": {"channel": kind.removeprefix("delay_"), "for_s": for_s,
+                          "delay_s": round(rng.uniform(0.05, 0.5), 3)}}
+    else:   # reorder_move
+        body = {"reorder": {"channel": "move", "for_s": for_s}}
+    return {"at_s": round(at_s, 3), **body}
+
+
+def sample_run(data: dict[str, Any], run: int, base_seed: int,
+               sweep: SweepSpec) -> tuple[dict[str, Any], str | None]:
+    """The scenario data of run ``run`` and the fault kind it drew (None: no fault)."""
+    out = sample_scenario(data, run, base_seed, sweep)
+    spec = sweep.faults
+    if spec is None:
+        return out, None
+    rng = random.Random(f"overdrive-sweep-fault/{base_seed + run}")
+    if rng.random() >= spec.probability:
+        return out, None
+    kind = rng.choice(spec.kinds)
+    low, high = min(spec.at_s), max(spec.at_s)
+    at_s = min(rng.uniform(low, high), float(out.get("duration_s", 60.0)))
+    out.setdefault("events", []).append(fault_event(kind, at_s, rng))
+    return out, kind
+
+
 def sample_scenario(data: dict[str, Any], run: int, base_seed: int, sweep: SweepSpec) -> dict[str, Any]:
-    """The scenario data of run ``run``: its seed and sampled parameters."""
+    """The scenario data of run ``run``: its seed and sampled parameters (no drawn fault)."""
     seed = base_seed + run
     rng = random.Random(f"overdrive-sweep/{seed}")
     out = copy.deepcopy(data)
@@ -61,17 +103,19 @@ def sample_scenario(data: dict[str, Any], run: int, base_seed: int, sweep: Sweep
     return out
 
 
-def run_one(job: tuple[dict[str, Any], str, int]) -> dict[str, Any]:
+def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
     """Run one sampled scenario (in a worker process); return its figures."""
     from overdrive.sim import run_scenario
 
-    data, source, run = job
+    data, source, run, fault = job
     scenario = parse_scenario(data, f"{source} (run {run})")
     summary = run_scenario(scenario, None, keep_trace=False, plot=False).summary
     invariants = [v for v in summary["violations"] if v.startswith("invariant ")]
     return {
         "run": run,
         "seed": data["seed"],
+        "fault": fault,
+        "rules": sorted({d["rule"] for d in summary["violation_details"]}),
         "friction": data["world"].get("friction"),
         "grade_percent": data["world"].get("grade_percent"),
         "invariant_violations": invariants,
@@ -101,7 +145,8 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
     """Run the sweep, write ``sweep.json``, ``runs.csv``, ``distributions.png`` and the worst runs."""
     data, spec = load_raw(path)
     base = int(data.get("seed", 1)) if base_seed is None else base_seed
-    job_list = [(sample_scenario(data, i, base, spec), str(path), i) for i in range(runs)]
+    job_list = [(*sample_run(data, i, base, spec), i) for i in range(runs)]
+    job_list = [(d, str(path), i, fault) for d, fault, i in job_list]
     for job in job_list:   # fail fast, before any worker starts, on an invalid sample
         parse_scenario(job[0], f"{path} (run {job[2]})")
     jobs = max(1, min(jobs, runs))
@@ -130,19 +175,21 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
         "runs": runs,
         "violations": sum(len(r["invariant_violations"]) for r in results),
         "violating_runs": [r["run"] for r in violating],
+        "violations_by_rule": _by_rule(results),
+        "runs_by_fault": _by_fault(results),
         "expectation_failures": sum(len(r["expectation_failures"]) for r in results),
         "authorization_margin_m": _stats(margins),
         "max_decel_mps2": _stats([r["max_decel_mps2"] for r in results]),
         "max_accel_mps2": _stats([r["max_accel_mps2"] for r in results]),
         "max_lateral_accel_mps2": _stats([r["max_lateral_accel_mps2"] for r in results]),
-        "worst": [{k: r[k] for k in ("run", "seed", "friction", "grade_percent",
+        "worst": [{k: r[k] for k in ("run", "seed", "fault", "friction", "grade_percent",
                                      "authorization_margin_m", "max_decel_mps2",
                                      "invariant_violations")}
                   | {"replay": "overdrive sim " + str(worst_dir / "run-{}.yaml".format(r["run"]))}
                   for r in worst_runs],
     }
     (out_dir / "sweep.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-    columns = ("run", "seed", "friction", "grade_percent", "authorization_margin_m", "odometer_m",
+    columns = ("run", "seed", "fault", "friction", "grade_percent", "authorization_margin_m", "odometer_m",
                "final_speed_mps", "max_speed_mps", "max_accel_mps2", "max_decel_mps2",
                "max_lateral_accel_mps2", "estops")
     lines = [",".join(columns)]
@@ -152,6 +199,27 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
     (out_dir / "runs.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     _plot(results, out_dir / "distributions.png")
     return report
+
+
+def _by_rule(results: list[dict[str, Any]]) -> dict[str, int]:
+    """How many runs broke each rule of the judge."""
+    counts: dict[str, int] = {}
+    for r in results:
+        for rule in r["rules"]:
+            counts[rule] = counts.get(rule, 0) + 1
+    return dict(sorted(counts.items()))
+
+
+def _by_fault(results: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per drawn fault kind: runs, violating runs, and the rules they broke."""
+    table: dict[str, dict[str, Any]] = {}
+    for r in results:
+        row = table.setdefault(r["fault"] or "none", {"runs": 0, "violating": 0, "rules": {}})
+        row["runs"] += 1
+        row["violating"] += bool(r["invariant_violations"])
+        for rule in r["rules"]:
+            row["rules"][rule] = row["rules"].get(rule, 0) + 1
+    return dict(sorted(table.items()))
 
 
 def _stats(values: list[float]) -> dict[str, float] | None:
@@ -179,4 +247,4 @@ def default_jobs() -> int:
     return os.cpu_count() or 1
 
 
-__all__ = ["ScenarioError", "sample_scenario", "sweep"]
+__all__ = ["ScenarioError", "fault_event", "sample_run", "sample_scenario", "sweep"]

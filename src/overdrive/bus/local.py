@@ -30,6 +30,7 @@ class LocalBus:
     def __init__(self) -> None:
         self._subscribers: dict[str, list[Inbox]] = {}
         self._taps: list[Tap] = []
+        self._delivered_taps: list[Tap] = []
         self.channel: ChannelModel | None = None
 
     def subscribe(self, topics: Sequence[str]) -> Inbox:
@@ -43,7 +44,13 @@ class LocalBus:
         """Observe every published message (recording); taps see messages before channel faults."""
         self._taps.append(observer)
 
+    def tap_delivered(self, observer: Tap) -> None:
+        """Observe every message as the channel delivers it (after drops, delays, reordering)."""
+        self._delivered_taps.append(observer)
+
     def _deliver(self, topic: str, msg: Any) -> None:
+        for tap in self._delivered_taps:
+            tap(topic, msg)
         envelope = (topic, msg)
         for inbox in self._subscribers.get(topic, ()):
             inbox.append(envelope)
@@ -56,10 +63,15 @@ class LocalBus:
         taps = self._taps
         subscribers = self._subscribers
         channel = self.channel
+        delivered_taps = self._delivered_taps
         for topic, msg in outputs:
             for tap in taps:
                 tap(topic, msg)
             inboxes = subscribers.get(topic)
+            if delivered_taps:
+                for routed in (channel.route(topic, msg) if channel is not None else (msg,)):
+                    self._deliver(topic, routed)
+                continue
             if channel is None:
                 if inboxes:
                     envelope = (topic, msg)

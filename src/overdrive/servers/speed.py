@@ -44,6 +44,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -62,7 +63,6 @@ from overdrive.servers.speed_table import (
 )
 from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
-from overdrive.watchdog import Watchdog
 
 SOURCE = "speed"
 INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",

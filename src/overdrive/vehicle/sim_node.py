@@ -30,11 +30,11 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
-from overdrive.vehicle.gate import GateLimits, gate_pedals, gate_steer
+from overdrive.safety.gate import GateLimits, gate_pedals, gate_steer
+from overdrive.safety.watchdog import Watchdog
 from overdrive.vehicle.modes import PAUSE_MODES, computer_axes, safety_mode
 from overdrive.vehicle.plant import STOPPED_MPS, ActuatorFaults, Plant, World
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
-from overdrive.watchdog import Watchdog
 
 PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration" (seed 000); XGV default-like
 PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort
@@ -183,6 +183,8 @@ class VehicleSim:
         readings = self._sensors(computer_steers, computer_speed)
         if self.sensor_faults:
             readings = self._apply_sensor_faults(now_s, readings)
+        else:
+            self.last_readings.update(readings)   # a freeze repeats the last real reading
         out.extend(readings)
         return out
 

@@ -97,8 +97,8 @@ from overdrive.jaus import (
 from overdrive.jaus.judp import pack
 from overdrive.jaus.messages import LINK_STATUS_SHIFT
 from overdrive.messages import SafetyDevices, Topic
+from overdrive.safety.gate import GateLimits
 from overdrive.servers.speed_control import LongitudinalController, gains_for
-from overdrive.vehicle.gate import GateLimits
 from overdrive.vehicle.modes import (
     CONTROL_MODE_CODE,
     LINK_CODE,

@@ -85,7 +85,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
-from overdrive.vehicle.gate import GateLimits, gate_pedals
+from overdrive.safety.gate import GateLimits, gate_pedals
 from overdrive.vehicle.modes import SAFETY_MODES, computer_axes
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
 from overdrive.vehicle.xgv import gear_codes, gear_from_code

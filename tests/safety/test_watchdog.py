@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from overdrive.watchdog import Watchdog
+from overdrive.safety.watchdog import Watchdog
 
 DT = 0.01
 

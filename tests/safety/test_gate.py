@@ -9,7 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from overdrive.control import clamp, rate_limit
-from overdrive.vehicle.gate import GateLimits, gate_pedals, gate_steer
+from overdrive.safety.gate import GateLimits, gate_pedals, gate_steer
 
 LIMITS = GateLimits(steer_rate_pct_per_s=50.0)
 SWEEP = [v + d for v in (0.0, 100.0) for d in (-1e-6, -1e-9, 0.0, 1e-9, 1e-6)]

@@ -1,0 +1,497 @@
+"""The independent safety judge, run on every simulated run.
+
+The monitor is a bus tap, not part of the stack. It judges only from
+
+- **ground truth** (``sim/truth``): the path is integrated from x/y, never from the stack's
+  odometer or its remaining distance;
+- **commands as their sources issued them** (``observe``, a tap before channel faults): the
+  planner's MOVE / REVERSE / STOP, other sources' advance and max-speed messages (the move
+  server's own re-publications, source ``move``, are the stack's outputs and are ignored), the
+  safety devices, and actuator commands as the controllers issued them;
+- **what was delivered** to each node after channel faults and process boundaries
+  (``observe_delivered``): the SPSS the speed server actually received.
+
+Rules (docs/reliability.md, docs/safety-case.md):
+
+1. **authorization**: each MOVE / REVERSE / advance fixes its end at the true position when it
+   was issued; a replacement fixes a new end; STOP means "stop now". A command shorter than
+   the shortest physical stop from that moment (one control period plus brake lag, then the
+   brake or tyre limit with gravity along the slope) is an ``impossible_command`` note and is
+   judged against that shortest stop. The largest overrun of the run is reported.
+2. **direction**: no travel of more than 0.10 m against the commanded direction (rolling back
+   under a MOVE, forward under a REVERSE, either way before the first command).
+3. **speed**: true speed never above the lowest live limit (the command's maxspeed, other
+   sources' limits until they lapse, the engaged gear's top speed) by more than 0.3 m/s for
+   longer than 0.5 s. A lowered limit is met along a ramp at 2.0 m/s^2 from the speed when it
+   was lowered.
+4. **unintended_motion**: once a SafeStop pause, a manual override or an e-stop disable has
+   ended, the vehicle moves no further than its shortest stop from the speed it had then
+   (+0.10 m) until a command issued after that moment.
+5. **watchdog**: on SPSS as delivered to the speed server, an emergency stop (throttle 0,
+   brake >= 99 % from the speed server) within 200 ms plus one control period of the last one.
+6. **finite**: any NaN or infinity in ground truth or in a command is a violation.
+7. **throttle_while_braking**: no pedal command has throttle and brake both above zero.
+8. **control**: every actuator command from a source without control is rejected.
+9. **acceleration_ellipse**: achieved acceleration stays inside the physical ellipse (15 %
+   plant tolerance), outside emergency stops.
+10. **estop_precedence**: in e-stop disable the vehicle brakes >= 95 % within 0.5 s.
+11. **contact**: the vehicle never touches an obstacle.
+
+While a human drives (manual override, emergency manual override) rules 1-3 are suspended: the
+stack does not hold the wheel. Every violation says which rule, when and by how much.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from overdrive.messages import Topic
+from overdrive.vehicle.plant import DRY_MU
+from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.vehicle.sim_node import WORLD_TOPIC
+
+WATCHDOG_S = 0.200            # seed 001: "Failure to send one for 200ms will result in an emergency stop"
+ESTOP_BRAKE_PCT = 99.0        # what counts as "brakes full on"
+AUTHORIZATION_TOLERANCE_M = 0.0  # issue 4: "0 m overrun"
+DIRECTION_TOLERANCE_M = 0.10  # issue 15: "no travel of more than 0.10 m against the commanded direction"
+SPEED_TOLERANCE_MPS = 0.3     # issue 15: "by more than 0.3 m/s ..."
+SPEED_TOLERANCE_S = 0.5       # issue 15: "... for longer than 0.5 s"
+LIMIT_RAMP_DECEL_MPS2 = 2.0   # a lowered limit must be met at least this fast: a firm, comfortable
+                              # stop (ACC systems brake up to 3.5 m/s^2, ISO 15622); below the stack's
+                              # derated planning decel on dry and wet roads
+MAX_SPEED_TTL_S = 0.5         # docs/driving-module.md: a limit not refreshed for 0.5 s lapses
+MOTION_TOLERANCE_M = 0.10     # unintended motion: same as the direction tolerance
+ELLIPSE_TOLERANCE = 0.15      # plant tolerance: actuator lags and tyre-model transients
+ESTOP_DISABLE_BRAKE_S = 0.5   # brake actuator reaches full effort within ~5 time constants
+MIN_DECEL_MPS2 = 0.1          # floor of the physical decel (a slope steeper than the tyres can hold)
+EPS_S = 1e-6
+MOVING_MPS = 0.05             # a stop is recorded when the speed falls from above this ...
+STOPPED_MPS = 0.001           # ... to below this
+PLANNER = "planner"           # the source name of MOVE / REVERSE / STOP in reports
+MOVE_SERVER_SOURCE = "move"   # advance / max-speed re-published by the move server: stack output
+MANUAL = frozenset({"manual-override", "emergency-manual-override"})
+
+COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
+    Topic.MOVE_COMMAND: ("distance_m", "maxspeed_mps", "curvature_1pm"),
+    Topic.ADVANCE: ("distance_m",),
+    Topic.MAX_SPEED: ("speed_mps",),
+    Topic.STEERING: ("curvature_1pm",),
+    Topic.SET_SPEED: ("speed_mps", "accel_mps2"),
+    Topic.PEDALS: ("throttle_pct", "brake_pct"),
+    Topic.STEER: ("steer_pct",),
+}
+"""Numeric fields of the commands the finite rule checks."""
+
+TRUTH_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2", "lat_accel_mps2",
+                "curvature_1pm", "pitch_rad", "roll_rad", "odometer_m")
+
+
+@dataclass
+class Violation:
+    """One rule broken: the worst instance of the run (``amount`` in ``unit``) and when."""
+
+    rule: str
+    key: str
+    t_s: float
+    amount: float
+    unit: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.key}: {self.message} (t={self.t_s:.2f} s)"
+
+
+@dataclass
+class End:
+    """The end of one authorization, fixed where the vehicle truly was when it was issued."""
+
+    end_m: float
+    reverse: bool
+    issued_s: float
+    label: str
+
+
+def interruption(devices: Any) -> str | None:
+    """The interruption the safety devices impose, by the seed-000 precedence; None when none."""
+    if devices.safestop == "stop" or devices.estop_button:
+        return "estop-disable"
+    if devices.emergency_manual_override:
+        return "emergency-manual-override"
+    if devices.manual_override:
+        return "manual-override"
+    if devices.safestop == "pause" or devices.safestop_link == "none":
+        return "estop-pause"
+    return None
+
+
+def physical_decel_mps2(params: VehicleParams, friction: float, pitch_rad: float,
+                        reverse: bool) -> float:
+    """Hardest possible braking: brakes or tyres, whichever gives first, with gravity along the slope."""
+    pitch = -pitch_rad if reverse else pitch_rad
+    tyre = min(params.max_brake_decel_mps2, friction * G_MPS2 * math.cos(pitch))
+    return max(tyre + G_MPS2 * math.sin(pitch), MIN_DECEL_MPS2)
+
+
+def shortest_stop_m(speed_mps: float, params: VehicleParams, friction: float, pitch_rad: float,
+                    period_s: float, reverse: bool = False) -> float:
+    """Distance no vehicle can beat from ``speed_mps`` (in the direction of travel judged).
+
+    One control period at speed (the command's latency), the brake actuator's lag (a first-order
+    lag costs its time constant at speed), then the physical deceleration.
+    """
+    v = max(speed_mps, 0.0)
+    decel = physical_decel_mps2(params, friction, pitch_rad, reverse)
+    return v * (period_s + params.brake_lag_s) + v * v / (2.0 * decel)
+
+
+class Monitor:
+    def __init__(self, params: VehicleParams, friction: float, period_s: float,
+                 pedal_sources: frozenset[str] = frozenset({"speed", "scenario"}),
+                 steer_sources: frozenset[str] = frozenset({"driving", "scenario"}),
+                 *, spss_is_command: bool = False) -> None:
+        """``spss_is_command``: the scenario itself is the speed server's client (set_speed runs),
+        so an SPSS it issues is a command (it ends a hold) rather than the stack's output."""
+        self.params = params
+        self.period_s = period_s
+        self.pedal_sources = pedal_sources
+        self.steer_sources = steer_sources
+        self.spss_is_command = spss_is_command
+        self.friction = friction
+        self.now_s = 0.0
+        self.records: dict[str, Violation] = {}
+        self.notes: list[dict[str, Any]] = []
+        # ground truth
+        self.progress_m = 0.0           # signed travel along the heading, integrated from x/y
+        self._last_xyh: tuple[float, float, float] | None = None
+        self.speed_mps = 0.0
+        self.pitch_rad = 0.0
+        self.gear_cap_mps = math.inf
+        # authorization
+        self.ends: dict[str, End] = {}
+        # direction: +1 forward, -1 reverse, 0 held (no command yet), None not judged
+        self.direction: int | None = 0
+        self.water_m = 0.0              # furthest progress in the commanded direction
+        self.planner_seen = False
+        # speed
+        self.command_limit_mps = math.inf
+        self.source_limits: dict[str, tuple[float, float]] = {}   # source -> (limit, last heard)
+        self._ramp_mps = math.inf
+        self._last_speed_mps = 0.0
+        self._excess_since_s: float | None = None
+        # interruptions
+        self.interrupt: str | None = None
+        self.after_interrupt: tuple[float, float, float] | None = None  # (anchor, allowed, ended at)
+        # watchdog (delivered SPSS)
+        self.last_spss_s: float | None = None
+        self.estop_at_s: float | None = None
+        self.estop_active = False
+        # control, e-stop precedence, stop margins
+        self.rejected_expected = 0
+        self.rejected_seen = 0
+        self.estop_disable_since: float | None = None
+        self.stop_margins_m: list[float] = []
+        self.moving = False
+        self._handlers = {Topic.TRUTH: self._truth, Topic.ADVANCE: self._advance,
+                          Topic.MOVE_COMMAND: self._move_command, Topic.MAX_SPEED: self._max_speed,
+                          Topic.PEDALS: self._pedals, Topic.STEER: self._steer,
+                          Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._issued_spss,
+                          Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._vehicle_status,
+                          Topic.SAFETY: self._safety, WORLD_TOPIC: self._world}
+        self._ax_full_mps2 = max(params.max_decel_mps2, params.max_brake_decel_mps2)
+        self._ay_full_mps2 = params.skidpad_lat_g * G_MPS2
+
+    # ------------------------------------------------------------------ bookkeeping
+
+    @property
+    def violations(self) -> list[str]:
+        return [str(v) for v in self.records.values()]
+
+    def _violate(self, rule: str, key: str, amount: float, unit: str, message: str,
+                 worst: bool = False) -> None:
+        """Record a violation: the first occurrence, or with ``worst`` the largest ``amount``."""
+        old = self.records.get(key)
+        if old is None or (worst and amount > old.amount):
+            self.records[key] = Violation(rule, key, self.now_s, amount, unit, message)
+
+    def _shortest_stop(self, speed_mps: float, reverse: bool) -> float:
+        return shortest_stop_m(speed_mps, self.params, self.friction, self.pitch_rad,
+                               self.period_s, reverse)
+
+    def _finite(self, topic: str, msg: Any, fields: tuple[str, ...]) -> bool:
+        bad = [f for f in fields if not math.isfinite(getattr(msg, f))]
+        if bad:
+            self._violate("finite", f"finite[{topic}]", 1.0, "",
+                          f"non-finite {', '.join(bad)} in {type(msg).__name__}")
+        return not bad
+
+    def _manual(self) -> bool:
+        return self.interrupt in MANUAL
+
+    # ------------------------------------------------------------------ taps
+
+    def observe(self, topic: str, msg: Any) -> None:
+        """Every message as its source published it (before channel faults)."""
+        fields = COMMAND_FIELDS.get(topic)
+        if fields is not None and not self._finite(topic, msg, fields):
+            return
+        handler = self._handlers.get(topic)
+        if handler is not None:
+            handler(msg)
+
+    def observe_delivered(self, topic: str, msg: Any) -> None:
+        """Every message as it reached its subscribers (after channel faults)."""
+        if topic == Topic.SET_SPEED:
+            self.last_spss_s = self.now_s
+            self.estop_at_s = None
+
+    # ------------------------------------------------------------------ commands as issued
+
+    def _new_command(self, direction: int | None) -> None:
+        """A command issued now: it ends a hold and any post-interruption stand-still."""
+        self.after_interrupt = None
+        if direction is not None and direction != self.direction:
+            self.water_m = self.progress_m
+        self.direction = direction
+
+    def _set_end(self, source: str, distance_m: float, reverse: bool, label: str,
+                 note: bool = True) -> None:
+        """Fix an end ``distance_m`` ahead of the true position, or the shortest stop if longer
+        (with an ``impossible_command`` note unless ``note`` is False: a STOP asks for it)."""
+        speed = -self.speed_mps if reverse else self.speed_mps
+        shortest = self._shortest_stop(speed, reverse)
+        length = max(distance_m, shortest)
+        if distance_m < shortest and note:
+            self.notes.append({"t_s": round(self.now_s, 3), "kind": "impossible_command",
+                               "source": source, "command": label,
+                               "distance_m": round(distance_m, 4),
+                               "shortest_stop_m": round(shortest, 4),
+                               "speed_mps": round(self.speed_mps, 4)})
+        end = self.progress_m - length if reverse else self.progress_m + length
+        self.ends[source] = End(end, reverse, self.now_s, label)
+
+    def _move_command(self, msg: Any) -> None:
+        self.planner_seen = True
+        if msg.kind == "stop":
+            moving_back = self.speed_mps < -MOVING_MPS or (
+                self.direction == -1 and self.speed_mps <= MOVING_MPS)
+            self._set_end(PLANNER, 0.0, moving_back, f"STOP #{msg.command_id}", note=False)
+            self.command_limit_mps = math.inf
+            return
+        if not (msg.distance_m >= 0.0 and msg.maxspeed_mps >= 0.0):
+            return   # invalid: the move server must reject it; nothing to hold the vehicle to
+        reverse = msg.kind == "reverse"
+        self._set_end(PLANNER, msg.distance_m, reverse,
+                      f"{msg.kind.upper()} #{msg.command_id} of {msg.distance_m:g} m")
+        self.command_limit_mps = msg.maxspeed_mps
+        self._new_command(-1 if reverse else 1)
+
+    def _advance(self, msg: Any) -> None:
+        if msg.source == MOVE_SERVER_SOURCE or not msg.distance_m >= 0.0:
+            return
+        self._set_end(msg.source, msg.distance_m, msg.reverse,
+                      f"advance of {msg.distance_m:g} m from {msg.source}")
+        self._new_command(None if self.planner_seen else (-1 if msg.reverse else 1))
+
+    def _max_speed(self, msg: Any) -> None:
+        if msg.source != MOVE_SERVER_SOURCE and msg.speed_mps >= 0.0:
+            self.source_limits[msg.source] = (msg.speed_mps, self.now_s)
+
+    def _issued_spss(self, msg: Any) -> None:
+        if self.spss_is_command:
+            self._new_command(None)
+
+    def _pedals(self, msg: Any) -> None:
+        if msg.throttle_pct > 0.0 and msg.brake_pct > 0.0:
+            self._violate("throttle_while_braking", "throttle_while_braking",
+                          min(msg.throttle_pct, msg.brake_pct), "%",
+                          f"{msg.source} commanded throttle {msg.throttle_pct:.1f} % with brake "
+                          f"{msg.brake_pct:.1f} %")
+        if msg.source not in self.pedal_sources:
+            self.rejected_expected += 1
+        if msg.source == "scenario":
+            self._new_command(None)     # open loop: the scenario drives the pedals itself
+        if msg.source == "speed":
+            self.estop_active = msg.throttle_pct == 0.0 and msg.brake_pct >= ESTOP_BRAKE_PCT
+            if self.estop_active and self.estop_at_s is None:
+                self.estop_at_s = self.now_s
+
+    def _steer(self, msg: Any) -> None:
+        if msg.source not in self.steer_sources:
+            self.rejected_expected += 1
+
+    def _powertrain(self, msg: Any) -> None:
+        if msg.source not in self.pedal_sources:
+            self.rejected_expected += 1
+
+    def _notice(self, msg: Any) -> None:
+        if msg.kind == "rejected" and msg.code == "no_control":
+            self.rejected_seen += 1
+
+    def _world(self, msg: Any) -> None:
+        self.friction = msg.friction
+
+    def _safety(self, devices: Any) -> None:
+        now = interruption(devices)
+        if self.interrupt is not None and now is None:
+            speed = abs(self.speed_mps)
+            allowed = self._shortest_stop(speed, self.speed_mps < 0.0) + MOTION_TOLERANCE_M
+            self.after_interrupt = (self.progress_m, allowed, self.now_s)
+        if now in MANUAL and not self._manual():
+            self.ends.clear()               # the human drives: earlier authorizations are void
+            self.direction = None
+            self.command_limit_mps = math.inf
+        self.interrupt = now
+
+    def _vehicle_status(self, status: Any) -> None:
+        gear = next((g for g in self.params.gears if g.name == status.gear), None)
+        self.gear_cap_mps = gear.max_speed_mps if gear is not None and gear.direction else math.inf
+        if status.safety_mode == "estop-disable":
+            if self.estop_disable_since is None:
+                self.estop_disable_since = self.now_s
+            elif (self.now_s - self.estop_disable_since > ESTOP_DISABLE_BRAKE_S
+                  and status.brake_pct < 95.0):
+                self._violate("estop_precedence", "estop_precedence", 95.0 - status.brake_pct, "%",
+                              f"e-stop disable but brake only {status.brake_pct:.0f} %")
+        else:
+            self.estop_disable_since = None
+
+    # ------------------------------------------------------------------ ground truth
+
+    def _truth(self, truth: Any) -> None:
+        if not self._finite(Topic.TRUTH, truth, TRUTH_FIELDS):
+            return
+        x, y, h = truth.x_m, truth.y_m, truth.heading_rad
+        if self._last_xyh is not None:
+            x0, y0, h0 = self._last_xyh
+            mid = h0 + 0.5 * math.remainder(h - h0, math.tau)
+            self.progress_m += (x - x0) * math.cos(mid) + (y - y0) * math.sin(mid)
+        self._last_xyh = (x, y, h)
+        self.speed_mps = truth.speed_mps
+        self.pitch_rad = truth.pitch_rad
+        self._record_stop(truth.speed_mps)
+        if not self._manual():
+            self._authorization()
+            self._direction()
+            self._speed()
+        self._unintended_motion()
+        if truth.contact:
+            self._violate("contact", "contact", abs(truth.speed_mps), "m/s",
+                          f"the vehicle touched an obstacle at {abs(truth.speed_mps):.2f} m/s")
+        self._ellipse(truth)
+
+    def _record_stop(self, speed_mps: float) -> None:
+        if abs(speed_mps) > MOVING_MPS:
+            self.moving = True
+        elif self.moving and abs(speed_mps) < STOPPED_MPS:
+            self.moving = False
+            margin = self.authorization_margin_m()
+            if margin is not None:
+                self.stop_margins_m.append(margin)
+
+    def _authorization(self) -> None:
+        p = self.progress_m
+        for source, end in self.ends.items():
+            overrun = (end.end_m - p) if end.reverse else (p - end.end_m)
+            if overrun > AUTHORIZATION_TOLERANCE_M + 1e-9:
+                self._violate("authorization", f"authorization[{source}]", overrun, "m",
+                              f"passed the end of {end.label} (issued at t={end.issued_s:.2f} s) "
+                              f"by {overrun:.3f} m", worst=True)
+
+    def _direction(self) -> None:
+        direction, p = self.direction, self.progress_m
+        if direction is None:
+            return
+        if direction == 0:
+            travel = abs(p - self.water_m)
+            what = "moved {:.3f} m with no command"
+        elif direction > 0:
+            self.water_m = max(self.water_m, p)
+            travel = self.water_m - p
+            what = "rolled back {:.3f} m under a forward command"
+        else:
+            self.water_m = min(self.water_m, p)
+            travel = p - self.water_m
+            what = "moved forward {:.3f} m under a REVERSE"
+        if travel > DIRECTION_TOLERANCE_M:
+            self._violate("direction", "direction", travel, "m", what.format(travel), worst=True)
+
+    def _speed(self) -> None:
+        now, dt = self.now_s, self.period_s
+        limit = min(self.command_limit_mps, self.gear_cap_mps)
+        for value, heard_s in self.source_limits.values():
+            if now - heard_s <= MAX_SPEED_TTL_S + EPS_S:
+                limit = min(limit, value)
+        speed = abs(self.speed_mps)
+        # a limit lowered below the speed is met along a ramp from the speed it was lowered at
+        ramp_from = min(self._ramp_mps, self._last_speed_mps)
+        self._ramp_mps = max(limit, ramp_from - LIMIT_RAMP_DECEL_MPS2 * dt)
+        self._last_speed_mps = speed
+        excess = speed - self._ramp_mps
+        if excess <= SPEED_TOLERANCE_MPS:
+            self._excess_since_s = None
+            return
+        if self._excess_since_s is None:
+            self._excess_since_s = now
+        if now - self._excess_since_s > SPEED_TOLERANCE_S + EPS_S:
+            self._violate("speed", "speed", excess, "m/s",
+                          f"{speed:.2f} m/s against a limit of {self._ramp_mps:.2f} m/s "
+                          f"(over by more than {SPEED_TOLERANCE_MPS} m/s since "
+                          f"t={self._excess_since_s:.2f} s)", worst=True)
+
+    def _unintended_motion(self) -> None:
+        if self.after_interrupt is None or self.interrupt is not None:
+            return
+        anchor, allowed, ended_s = self.after_interrupt
+        travel = abs(self.progress_m - anchor)
+        if travel > allowed:
+            self._violate("unintended_motion", "unintended_motion", travel - allowed, "m",
+                          f"moved {travel:.3f} m after the interruption ended at t={ended_s:.2f} s "
+                          f"with no new command (at most {allowed:.3f} m to stop)", worst=True)
+
+    def _ellipse(self, truth: Any) -> None:
+        if self.estop_active or abs(truth.speed_mps) < 0.05:
+            return
+        scale = min(self.friction / DRY_MU, 1.0)
+        ax_max = self._ax_full_mps2 * scale
+        ay_max = self._ay_full_mps2 * scale
+        ax = truth.accel_mps2 + G_MPS2 * math.sin(truth.pitch_rad)   # tyre force, gravity removed
+        ay = truth.lat_accel_mps2
+        usage = math.hypot(ax / ax_max, ay / ay_max)
+        if usage > 1.0 + ELLIPSE_TOLERANCE:
+            self._violate("acceleration_ellipse", "acceleration_ellipse", usage, "",
+                          f"achieved acceleration ({ax:.2f}, {ay:.2f}) m/s^2 uses {usage:.0%} of the "
+                          f"ellipse ({ax_max:.2f}, {ay_max:.2f})", worst=True)
+
+    # ------------------------------------------------------------------ per tick
+
+    def tick(self, now_s: float) -> None:
+        """Time-based checks, after every node has stepped at ``now_s``."""
+        if self.last_spss_s is not None:
+            deadline_s = self.last_spss_s + WATCHDOG_S + self.period_s
+            late = self.estop_at_s is None or self.estop_at_s > deadline_s + EPS_S
+            if now_s > deadline_s + EPS_S and late:
+                gap = now_s - self.last_spss_s
+                self._violate("watchdog", "watchdog", gap - WATCHDOG_S, "s",
+                              f"no SPSS delivered for {gap * 1000:.0f} ms and no emergency stop by "
+                              f"{(WATCHDOG_S + self.period_s) * 1000:.0f} ms")
+
+    def authorization_margin_m(self) -> float | None:
+        """Distance still authorized ahead of the vehicle by the most restrictive source, now."""
+        if not self.ends:
+            return None
+        p = self.progress_m
+        return min((p - e.end_m) if e.reverse else (e.end_m - p) for e in self.ends.values())
+
+    def finish(self) -> list[str]:
+        if self.rejected_seen < self.rejected_expected:
+            self._violate("control", "control", self.rejected_expected - self.rejected_seen, "",
+                          f"{self.rejected_expected} actuator commands from sources without "
+                          f"control, only {self.rejected_seen} rejected")
+        return self.violations
+
+    def details(self) -> list[dict[str, Any]]:
+        """Every violation as a record: rule, key, time, amount and unit, message."""
+        return [asdict(v) | {"t_s": round(v.t_s, 3), "amount": round(v.amount, 4)}
+                for v in self.records.values()]

@@ -1,0 +1,230 @@
+"""The judge on whole runs: it catches what an independent checker computing the path from the
+trace's x/y catches, and its figures match that checker's.
+
+Cases the stack still fails (issues 16 and 17) are kept as strict xfails: each fix must flip
+one, and the judge must keep failing the stack until then.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from overdrive.messages import Topic
+from overdrive.scenario import parse_scenario
+from overdrive.servers import speed as speed_module
+from overdrive.sim import run_scenario
+from overdrive.sweep import sweep
+from overdrive.vehicle.sim_node import VehicleSim
+from tests.conftest import PRESET_NAMES
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run(vehicle: Any = "escape-hybrid", duration_s: float = 30.0, start: str = "ready",
+        world: dict | None = None, events: list[dict] = ()) -> Any:
+    data = {"name": "judge", "vehicle": vehicle, "start": start, "duration_s": duration_s,
+            "world": world or {}, "events": list(events)}
+    return run_scenario(parse_scenario(data), None)
+
+
+def rules_of(result: Any) -> set[str]:
+    return {d["rule"] for d in result.summary["violation_details"]}
+
+
+def independent_overrun_m(trace: list[dict[str, str]], issued_s: float, distance_m: float) -> float:
+    """Largest travel past ``distance_m`` from where the vehicle was at ``issued_s``, from x/y only."""
+    rows = [r for r in trace if float(r["t_s"]) >= issued_s - 1e-9]
+    x0, y0, h0 = float(rows[0]["x_m"]), float(rows[0]["y_m"]), float(rows[0]["heading_rad"])
+    return max((float(r["x_m"]) - x0) * math.cos(h0) + (float(r["y_m"]) - y0) * math.sin(h0)
+               for r in rows) - distance_m
+
+
+# --------------------------------------------------------------------------- acceptance
+
+def test_brake_stuck_released_at_cruise_is_an_overrun_named_by_its_largest_value() -> None:
+    result = run(duration_s=40, events=[
+        {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 5.0, "actuator": {"brake": {"stuck": True}}}])
+    assert result.exit_code == 1
+    [detail] = [d for d in result.summary["violation_details"] if d["rule"] == "authorization"]
+    expected = independent_overrun_m(result.trace, 0.5, 60.0)
+    assert expected > 100.0
+    assert detail["amount"] == pytest.approx(expected, abs=0.02)
+    assert f"by {detail['amount']:.3f} m" in next(v for v in result.summary["violations"]
+                                                   if "authorization[planner]" in v)
+
+
+def test_spss_loss_sweep_fails_when_the_speed_servers_timeout_is_raised(tmp_path: Path,
+                                                                        monkeypatch) -> None:
+    scenario = ROOT / "scenarios" / "sweep-spss-loss.yaml"
+    honest = sweep(scenario, 6, 1, tmp_path / "honest")
+    assert honest["violations"] == 0
+    slow = functools.partial(speed_module.SpeedServerConfig, spss_timeout_s=0.3)
+    monkeypatch.setattr(speed_module, "SpeedServerConfig", slow)
+    report = sweep(scenario, 6, 1, tmp_path / "slow")       # jobs=1: in this process, patched
+    assert report["violations_by_rule"].get("watchdog") == 6, report["violations_by_rule"]
+
+
+def test_the_watchdog_judges_spss_as_delivered_not_as_issued() -> None:
+    """During a drop the scenario still issues SPSS; only what reached the speed server counts."""
+    result = run(duration_s=4, events=[
+        {"at_s": 0.5, "set_speed": {"speed_mps": 5, "accel_mps2": 1, "gear": "drive", "state": "run"}},
+        {"at_s": 2.0, "drop": {"channel": "set_speed", "for_s": 2.0}}])
+    assert result.exit_code == 0
+    estops = [e for e in result.summary["events"] if e["kind"] == "estop"]
+    assert estops and 2.0 < estops[0]["t_s"] <= 2.0 + 0.21
+
+
+@pytest.mark.parametrize("vehicle", ["escape-hybrid", {"preset": "escape-hybrid", "mass_kg": 1.0e308}])
+def test_non_finite_runs_never_exit_0(vehicle: Any) -> None:
+    result = run(vehicle=vehicle, duration_s=3, events=[
+        {"at_s": 0.5, "move": {"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}}])
+    if isinstance(vehicle, dict):
+        assert result.exit_code == 1 and "finite" in rules_of(result)
+    else:
+        assert result.exit_code == 0
+
+
+def test_freeze_repeats_the_last_real_reading_from_its_first_use() -> None:
+    """Issue 15: ``fault: freeze`` published nothing unless an earlier sensor fault had run."""
+    data = {"name": "freeze", "start": "ready", "duration_s": 3, "events": [
+        {"at_s": 0.5, "move": {"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}},
+        {"at_s": 1.5, "sensor": {"name": "gps", "fault": "freeze", "for_s": 1.0}}]}
+    seen: list[tuple[float, Any]] = []
+
+    class Tap:
+        now_s = 0.0
+
+        def set_time(self, now_s: float) -> None:
+            self.now_s = now_s
+
+        def observe(self, topic: str, msg: Any) -> None:
+            if topic == Topic.GPS_INS:
+                seen.append((self.now_s, msg))
+
+    run_scenario(parse_scenario(data), None, observers=[Tap()])
+    frozen = [m for t, m in seen if 1.5 < t < 2.5 - 1e-9]
+    assert len(frozen) == 99, "a reading every period during the freeze"
+    assert len({(m.x_m, m.odometer_m) for m in frozen}) == 1, "the same reading repeated"
+    before = [m for t, m in seen if t <= 1.5 + 1e-9][-1]
+    assert frozen[0] == before
+
+
+def test_vehicle_sim_keeps_the_last_readings_without_any_fault() -> None:
+    from overdrive.vehicle.plant import World
+    from overdrive.vehicle.presets import ESCAPE_HYBRID
+
+    sim = VehicleSim(ESCAPE_HYBRID, World(), 1, ready=True)
+    sim.step(0.0, [])
+    assert Topic.GPS_INS in sim.last_readings and Topic.WHEEL_SPEED in sim.last_readings
+
+
+def test_shipped_scenarios_are_judged() -> None:
+    """Every shipped scenario passes the judge except the known defects (xfails below)."""
+    from overdrive.scenario import load_scenario
+
+    known = {"xgv-safestop-pause.yaml"}   # issue 17: the pause resumes the stale MOVE
+    failing = []
+    for path in sorted((ROOT / "scenarios").glob("*.yaml")):
+        if path.name in known or path.name.startswith(("xgv-", "sweep-")):
+            continue      # xgv runs need sockets (tests/xgv); sweeps are run by test_sweep
+        result = run_scenario(load_scenario(path), None, keep_trace=False, plot=False,
+                              record_mcap=False)
+        if result.exit_code:
+            failing.append((path.name, result.summary["violations"]))
+    assert failing == []
+
+
+# --------------------------------------------------------------------------- known defects
+
+MOVE_30 = {"at_s": 0.5, "move": {"distance_m": 30, "maxspeed_mps": 5, "curvature_1pm": 0}}
+
+
+def no_violation(result: Any) -> None:
+    assert result.summary["violations"] == []
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16: a frozen GPS/INS runs away")
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_frozen_gps_at_standstill_does_not_run_away(preset: str) -> None:
+    no_violation(run(vehicle=preset, events=[
+        {"at_s": 0.2, "sensor": {"name": "gps", "fault": "freeze", "for_s": 30}}, MOVE_30]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16: rollback on a hill start")
+def test_hill_start_does_not_roll_back() -> None:
+    no_violation(run(duration_s=20, world={"grade_percent": 15}, events=[
+        {"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
+        {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 3, "curvature_1pm": 0}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16: the radar forgets what leaves its cone")
+def test_offset_obstacle_is_not_hit() -> None:
+    no_violation(run(world={"obstacles": [{"x_m": 40, "y_m": 0.6}]}, events=[
+        {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 2, "curvature_1pm": 0}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16: stuck steering is never noticed")
+def test_stuck_steering_is_noticed() -> None:
+    no_violation(run(duration_s=20, events=[
+        {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 12, "curvature_1pm": 0.1}},
+        {"at_s": 3.0, "actuator": {"steering": {"stuck": True}}},
+        {"at_s": 3.5, "move": {"distance_m": 60, "maxspeed_mps": 12, "curvature_1pm": 0}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16: a stuck throttle overruns")
+def test_throttle_stuck_while_accelerating_does_not_overrun() -> None:
+    no_violation(run(duration_s=20, world={"grade_percent": 15}, events=[
+        {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 3, "curvature_1pm": 0}},
+        {"at_s": 1.5, "actuator": {"throttle": {"stuck": True}}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17: a pause resumes the stale MOVE")
+def test_pause_release_does_not_resume_the_stale_move() -> None:
+    no_violation(run(events=[
+        {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 5, "safestop": "pause"}, {"at_s": 10, "safestop": "run"}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17: releasing a manual override resumes the stale MOVE")
+def test_override_release_does_not_resume_the_stale_move() -> None:
+    no_violation(run(events=[
+        {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 5, "manual_override": True}, {"at_s": 10, "manual_override": False}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17: a STOP can be overtaken by a reordered MOVE")
+def test_reordered_stop_is_not_overtaken() -> None:
+    no_violation(run(events=[
+        {"at_s": 0.5, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 5.9, "reorder": {"channel": "move", "for_s": 0.2}},
+        {"at_s": 6.0, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 6.05, "stop": {}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17: authorization cuts are overrun although a stop was possible")
+def test_authorization_cut_is_not_overrun() -> None:
+    no_violation(run(events=[
+        {"at_s": 0.5, "move": {"distance_m": 200, "maxspeed_mps": 12, "curvature_1pm": 0}},
+        {"at_s": 9, "advance": {"source": "lidar", "distance_m": 12}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17: latency on the advance channel becomes distance")
+def test_delayed_authorizations_are_not_overrun() -> None:
+    no_violation(run(events=[
+        {"at_s": 0.5, "move": {"distance_m": 40, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 0.5, "delay": {"channel": "advance", "for_s": 30, "delay_s": 0.5}}]))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16: failed brakes go unnoticed (no e-stop, no fault)")
+def test_brake_stuck_released_ends_in_an_emergency_stop_with_the_engine_cut() -> None:
+    result = run(duration_s=40, events=[
+        {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 5.0, "actuator": {"brake": {"stuck": True}}}])
+    assert any(e["kind"] == "estop" for e in result.summary["events"])
+    assert result.trace[-1]["engine"] == "off"

@@ -1,0 +1,510 @@
+"""The safety judge: every rule fires just outside its bound, stays quiet just inside, and says
+which rule, when and by how much. Synthetic ground truth, commands as issued."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from overdrive.messages import (
+    AdvanceAuthorization,
+    MaxSpeed,
+    MoveCommand,
+    Notice,
+    PedalCommand,
+    SafetyDevices,
+    SetSpeed,
+    SteerCommand,
+    Topic,
+    Truth,
+    VehicleStatus,
+)
+from overdrive.safety.monitor import (
+    LIMIT_RAMP_DECEL_MPS2,
+    MAX_SPEED_TTL_S,
+    Monitor,
+    interruption,
+    physical_decel_mps2,
+    shortest_stop_m,
+)
+from overdrive.scenario import parse_scenario
+from overdrive.sim import run_scenario
+from overdrive.vehicle.presets import ESCAPE_HYBRID, G_MPS2, PRESETS
+from tests.conftest import PRESET_NAMES, scenario_dict
+
+DT = 0.01
+JUST = (-0.01, -0.001, 0.001, 0.01)   # offsets swept around every bound
+
+
+def truth(x_m: float, speed_mps: float, accel: float = 0.0, lat: float = 0.0,
+          contact: bool = False, heading_rad: float = 0.0, pitch_rad: float = 0.0) -> Truth:
+    return Truth(x_m=x_m, y_m=0.0, heading_rad=heading_rad, speed_mps=speed_mps, accel_mps2=accel,
+                 lat_accel_mps2=lat, curvature_1pm=0.0, pitch_rad=pitch_rad, roll_rad=0.0,
+                 odometer_m=abs(x_m), slip=False, contact=contact)
+
+
+def status(mode: str = "drive-by-wire", brake_pct: float = 0.0, gear: str = "drive") -> VehicleStatus:
+    return VehicleStatus(gear=gear, shifting=False, engine="running", engine_rpm=900.0,
+                         start_failed=False, traction_control=False, steer_pct=0.0,
+                         throttle_pct=0.0, brake_pct=brake_pct, safety_mode=mode)
+
+
+def move(distance_m: float, maxspeed_mps: float = 10.0, kind: str = "move", cid: int = 1) -> MoveCommand:
+    return MoveCommand(kind=kind, command_id=cid, distance_m=distance_m, maxspeed_mps=maxspeed_mps)
+
+
+class Clock:
+    """Feeds one monitor synthetic ground truth on a 10 ms clock."""
+
+    def __init__(self, monitor: Monitor) -> None:
+        self.monitor = monitor
+        self.tick = 0
+
+    def at(self, x_m: float, speed_mps: float = 1.0, **kw: float) -> None:
+        m = self.monitor
+        m.now_s = self.tick * DT
+        m.observe(Topic.TRUTH, truth(x_m, speed_mps, **kw))
+        m.tick(m.now_s)
+        self.tick += 1
+
+    def path(self, xs: list[float], speed_mps: float = 1.0) -> None:
+        for x in xs:
+            self.at(x, speed_mps)
+
+    def issue(self, topic: str, msg: object) -> None:
+        self.monitor.observe(topic, msg)
+
+
+@pytest.fixture
+def monitor() -> Monitor:
+    return Monitor(ESCAPE_HYBRID, 0.8, DT)
+
+
+def rules(monitor: Monitor) -> dict[str, dict]:
+    monitor.finish()
+    return {d["key"]: d for d in monitor.details()}
+
+
+# --------------------------------------------------------------------------- authorization
+
+@pytest.mark.parametrize("offset", JUST)
+def test_move_end_is_fixed_where_it_was_issued(monitor: Monitor, offset: float) -> None:
+    clock = Clock(monitor)
+    clock.at(3.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0))
+    clock.path([5.0, 9.0, 13.0 + offset], speed_mps=0.5)
+    found = rules(monitor)
+    if offset < 0:
+        assert found == {}
+    else:
+        v = found["authorization[planner]"]
+        assert v["rule"] == "authorization" and v["unit"] == "m"
+        assert v["amount"] == pytest.approx(offset, abs=1e-6) and v["t_s"] == pytest.approx(3 * DT)
+        assert "MOVE #1 of 10 m" in v["message"]
+
+
+def test_the_largest_overrun_is_reported_not_the_first_crossing(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0))
+    clock.path([10.02, 11.0, 13.09, 12.5], speed_mps=0.3)
+    v = rules(monitor)["authorization[planner]"]
+    assert v["amount"] == pytest.approx(3.09) and v["t_s"] == pytest.approx(3 * DT)
+    assert "by 3.090 m" in v["message"]
+
+
+def test_a_replacement_fixes_a_new_end_from_where_the_vehicle_is(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0))
+    clock.path([4.0, 8.0], speed_mps=0.5)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0, cid=2))        # new end at 18 m
+    clock.path([12.0, 17.99], speed_mps=0.5)
+    assert rules(monitor) == {}
+    clock.path([18.01], speed_mps=0.5)
+    assert "MOVE #2" in rules(monitor)["authorization[planner]"]["message"]
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("offset", JUST)
+@pytest.mark.parametrize("pitch_rad", [-0.1, 0.0, 0.1])
+def test_stop_is_judged_against_the_shortest_physical_stop(preset: str, offset: float,
+                                                           pitch_rad: float) -> None:
+    params = PRESETS[preset]
+    monitor = Monitor(params, 0.8, DT)
+    clock = Clock(monitor)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=12.0))
+    clock.at(20.0, 10.0, pitch_rad=pitch_rad)
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
+    decel = min(params.max_brake_decel_mps2, 0.8 * G_MPS2 * math.cos(pitch_rad)) + G_MPS2 * math.sin(pitch_rad)
+    shortest = 10.0 * (DT + params.brake_lag_s) + 100.0 / (2.0 * decel)
+    assert shortest_stop_m(10.0, params, 0.8, pitch_rad, DT) == pytest.approx(shortest)
+    clock.at(20.0 + shortest + offset, 0.0, pitch_rad=pitch_rad)
+    assert bool(rules(monitor)) == (offset > 0)
+
+
+def test_a_command_shorter_than_the_shortest_stop_is_noted_and_judged_from_it(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 10.0)
+    clock.issue(Topic.MOVE_COMMAND, move(2.0))
+    shortest = shortest_stop_m(10.0, ESCAPE_HYBRID, 0.8, 0.0, DT)
+    [note] = monitor.notes
+    assert note["kind"] == "impossible_command" and note["distance_m"] == 2.0
+    assert note["shortest_stop_m"] == pytest.approx(shortest, abs=1e-4)
+    clock.at(shortest - 0.01, 0.0)
+    assert rules(monitor) == {}
+    clock.at(shortest + 0.05, 0.0)
+    assert rules(monitor)["authorization[planner]"]["amount"] == pytest.approx(0.05, abs=1e-4)
+
+
+@pytest.mark.parametrize("offset", JUST)
+def test_reverse_end(monitor: Monitor, offset: float) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(2.0, kind="reverse"))
+    clock.path([-1.0, -2.0 - offset], speed_mps=-0.5)
+    assert bool(rules(monitor)) == (offset > 0)
+
+
+def test_other_sources_are_judged_from_issue_time_and_the_move_servers_echo_is_ignored(
+        monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(5.0, 0.0)
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=10.0))
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="move", distance_m=1.0))
+    clock.path([10.0, 15.0], speed_mps=0.5)
+    assert rules(monitor) == {}, "the move server's own re-publication is stack output"
+    clock.path([15.2], speed_mps=0.5)
+    assert rules(monitor)["authorization[lidar]"]["amount"] == pytest.approx(0.2)
+
+
+def test_invalid_commands_are_not_held_against_the_vehicle(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="neg", distance_m=-1.0))
+    clock.issue(Topic.MOVE_COMMAND, move(-3.0))
+    assert monitor.authorization_margin_m() is None
+
+
+def test_the_path_is_integrated_from_x_y_along_the_heading() -> None:
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    monitor.observe(Topic.TRUTH, Truth(x_m=0.0, y_m=0.0, heading_rad=math.pi / 2, speed_mps=0.0,
+                                       accel_mps2=0.0, lat_accel_mps2=0.0, curvature_1pm=0.0,
+                                       pitch_rad=0.0, roll_rad=0.0, odometer_m=0.0, slip=False,
+                                       contact=False))
+    monitor.observe(Topic.MOVE_COMMAND, move(5.0))
+    for i in range(1, 8):      # north along y, odometer frozen at 0: the judge must not care
+        monitor.now_s = i * DT
+        monitor.observe(Topic.TRUTH, Truth(x_m=0.0, y_m=float(i), heading_rad=math.pi / 2,
+                                           speed_mps=1.0, accel_mps2=0.0, lat_accel_mps2=0.0,
+                                           curvature_1pm=0.0, pitch_rad=0.0, roll_rad=0.0,
+                                           odometer_m=0.0, slip=False, contact=False))
+    assert rules(monitor)["authorization[planner]"]["amount"] == pytest.approx(2.0)
+
+
+# --------------------------------------------------------------------------- direction
+
+@pytest.mark.parametrize("offset", JUST)
+def test_rollback_under_a_forward_move(monitor: Monitor, offset: float) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(30.0))
+    clock.path([1.0, 2.0, 2.0 - 0.10 - offset], speed_mps=-0.2)
+    found = rules(monitor)
+    assert ("direction" in found) == (offset > 0)
+    if offset > 0:
+        assert found["direction"]["amount"] == pytest.approx(0.10 + offset)
+        assert "rolled back" in found["direction"]["message"]
+
+
+@pytest.mark.parametrize("offset", JUST)
+def test_forward_under_a_reverse(monitor: Monitor, offset: float) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(30.0, kind="reverse"))
+    clock.path([-1.0, -1.0 + 0.10 + offset], speed_mps=0.2)
+    assert ("direction" in rules(monitor)) == (offset > 0)
+
+
+@pytest.mark.parametrize("offset", JUST)
+def test_no_motion_before_the_first_command(monitor: Monitor, offset: float) -> None:
+    clock = Clock(monitor)
+    clock.path([0.0, -0.05, -0.10 - offset], speed_mps=-0.1)
+    assert ("direction" in rules(monitor)) == (offset > 0)
+
+
+def test_rolling_back_after_a_stop_is_caught(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(30.0))
+    clock.path([5.0, 10.0], speed_mps=0.5)
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
+    clock.path([10.2, 10.0, 9.5], speed_mps=-0.3)
+    assert rules(monitor)["direction"]["amount"] == pytest.approx(0.7)
+
+
+# --------------------------------------------------------------------------- speed
+
+@pytest.mark.parametrize(("excess", "duration_s", "violates"), [
+    (0.29, 2.0, False), (0.31, 0.49, False), (0.31, 0.52, True), (1.0, 0.45, False), (1.0, 0.6, True)])
+def test_speed_above_the_commanded_maxspeed(monitor: Monitor, excess: float, duration_s: float,
+                                            violates: bool) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 5.0)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=5.0))
+    x = 0.0
+    for _ in range(round(duration_s / DT) + 1):
+        x += (5.0 + excess) * DT
+        clock.at(x, 5.0 + excess)
+    clock.at(x + 0.05, 5.0)
+    found = rules(monitor)
+    assert ("speed" in found) == violates
+    if violates:
+        assert found["speed"]["amount"] == pytest.approx(excess, abs=1e-6)
+
+
+def test_other_sources_limits_apply_until_they_lapse(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=10.0))
+    clock.issue(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=4.0))
+    clock.issue(Topic.MAX_SPEED, MaxSpeed(source="move", speed_mps=1.0))   # stack output: ignored
+    for _ in range(round(MAX_SPEED_TTL_S / DT) + 1):   # unrefreshed: lapses after its TTL
+        clock.at(0.0, 4.0)
+    for _ in range(100):
+        clock.at(0.0, 6.0)
+    assert rules(monitor) == {}, "a lapsed limit no longer binds"
+    clock.issue(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=4.0))
+    for _ in range(150):
+        clock.issue(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=4.0))
+        clock.at(0.0, 6.0)
+    assert rules(monitor)["speed"]["amount"] > 1.0
+
+
+def test_a_lowered_limit_is_met_along_a_ramp(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 10.0)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=10.0))
+    clock.at(0.0, 10.0)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=4.0, cid=2))
+    v = 10.0
+    while v > 4.0:                                   # braking at the ramp's rate: fine
+        v = max(4.0, v - LIMIT_RAMP_DECEL_MPS2 * DT)
+        clock.at(0.0, v)
+    assert rules(monitor) == {}
+    late = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(late)
+    clock.at(0.0, 10.0)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=4.0))
+    for _ in range(300):                             # keeps 10 m/s: over the ramp within 0.5 s
+        clock.at(0.0, 10.0)
+    assert rules(late)["speed"]["amount"] == pytest.approx(6.0)
+
+
+def test_the_gear_caps_speed(monitor: Monitor) -> None:
+    top = next(g for g in ESCAPE_HYBRID.gears if g.name == "low").max_speed_mps
+    clock = Clock(monitor)
+    monitor.observe(Topic.VEHICLE_STATUS, status(gear="low"))
+    for _ in range(100):
+        clock.at(0.0, top + 0.5)
+    assert rules(monitor)["speed"]["amount"] == pytest.approx(0.5)
+
+
+# --------------------------------------------------------------------------- unintended motion
+
+@pytest.mark.parametrize("devices", [SafetyDevices(safestop="pause"), SafetyDevices(safestop="stop"),
+                                     SafetyDevices(manual_override=True),
+                                     SafetyDevices(emergency_manual_override=True),
+                                     SafetyDevices(estop_button=True)])
+@pytest.mark.parametrize("offset", JUST)
+def test_no_motion_after_an_interruption_until_a_new_command(devices: SafetyDevices,
+                                                             offset: float) -> None:
+    assert interruption(devices) is not None
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0))
+    clock.path([5.0, 10.0], speed_mps=0.0)
+    clock.issue(Topic.SAFETY, devices)
+    clock.path([10.0, 10.0], speed_mps=0.0)
+    clock.issue(Topic.SAFETY, SafetyDevices())
+    clock.path([10.05, 10.10 + offset], speed_mps=0.0)
+    found = rules(monitor)
+    assert ("unintended_motion" in found) == (offset > 0)
+    if offset > 0:
+        assert found["unintended_motion"]["t_s"] == pytest.approx(6 * DT)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0, cid=2))   # a new command: motion is intended
+    clock.path([20.0, 30.0], speed_mps=5.0)
+    assert ("unintended_motion" in rules(monitor)) == (offset > 0)
+
+
+def test_the_human_drives_during_a_manual_override(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0, maxspeed_mps=2.0))
+    clock.issue(Topic.SAFETY, SafetyDevices(manual_override=True))
+    clock.path([5.0, 15.0, 12.0], speed_mps=8.0)
+    assert rules(monitor) == {}, "overrun, reversal and speed under a human driver are not the stack's"
+
+
+def test_an_spss_client_scenario_issues_commands_with_each_spss() -> None:
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT, spss_is_command=True)
+    clock = Clock(monitor)
+    clock.issue(Topic.SET_SPEED, SetSpeed(speed_mps=5, accel_mps2=1, gear="drive", state="run"))
+    clock.path([0.0, 1.0, 2.0], speed_mps=1.0)
+    assert rules(monitor) == {}
+    stack = Monitor(ESCAPE_HYBRID, 0.8, DT)     # SPSS from the stack's driving module: no command
+    clock = Clock(stack)
+    clock.issue(Topic.SET_SPEED, SetSpeed(speed_mps=5, accel_mps2=1, gear="drive", state="run"))
+    clock.path([0.0, 1.0], speed_mps=1.0)
+    assert "direction" in rules(stack)
+
+
+# --------------------------------------------------------------------------- watchdog
+
+@pytest.mark.parametrize(("estop_after_s", "ok"), [(0.20, True), (0.21, True), (0.22, False), (None, False)])
+def test_watchdog_deadline_from_the_last_delivered_spss(monitor: Monitor, estop_after_s: float | None,
+                                                       ok: bool) -> None:
+    spss = SetSpeed(speed_mps=1, accel_mps2=1, gear="drive", state="run")
+    monitor.observe_delivered(Topic.SET_SPEED, spss)
+    for tick in range(1, 40):
+        now = round(tick * DT, 6)
+        monitor.now_s = now
+        monitor.observe(Topic.SET_SPEED, spss)          # issued, but lost on the way
+        if estop_after_s is not None and now >= estop_after_s - 1e-9:
+            monitor.observe(Topic.PEDALS, PedalCommand(throttle_pct=0, brake_pct=100, source="speed"))
+        monitor.tick(now)
+    found = rules(monitor)
+    assert ("watchdog" in found) == (not ok)
+    if not ok:
+        assert found["watchdog"]["t_s"] == pytest.approx(0.22) and found["watchdog"]["unit"] == "s"
+
+
+# --------------------------------------------------------------------------- finite
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_truth_or_command_is_a_violation(monitor: Monitor, bad: float) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    assert rules(monitor) == {}
+    clock.at(bad, 0.0)
+    assert "finite[sim/truth]" in rules(monitor)
+    other = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    other.observe(Topic.PEDALS, PedalCommand(throttle_pct=bad, brake_pct=0.0, source="speed"))
+    other.observe(Topic.STEER, SteerCommand(steer_pct=1.0, source="driving"))
+    assert list(rules(other)) == ["finite[vehicle/pedals]"]
+
+
+# --------------------------------------------------------------------------- kept rules
+
+def test_throttle_while_braking(monitor: Monitor) -> None:
+    monitor.observe(Topic.PEDALS, PedalCommand(throttle_pct=5.0, brake_pct=0.0, source="speed"))
+    assert monitor.finish() == []
+    monitor.observe(Topic.PEDALS, PedalCommand(throttle_pct=5.0, brake_pct=1.0, source="speed"))
+    assert "throttle_while_braking" in monitor.finish()[0]
+
+
+def test_commands_from_sources_without_control_must_be_rejected(monitor: Monitor) -> None:
+    monitor.observe(Topic.STEER, SteerCommand(steer_pct=5.0, source="intruder"))
+    assert monitor.finish()
+    other = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    other.observe(Topic.STEER, SteerCommand(steer_pct=5.0, source="intruder"))
+    other.observe(Topic.NOTICE, Notice(kind="rejected", source="vehicle", code="no_control"))
+    assert other.finish() == []
+
+
+def test_pedal_and_powertrain_commands_from_intruders_must_be_rejected() -> None:
+    from overdrive.messages import PowertrainCommand
+
+    for msg, topic in ((PedalCommand(throttle_pct=50.0, brake_pct=0.0, source="intruder"), Topic.PEDALS),
+                       (PowertrainCommand(gear="drive", engine_on=True, source="intruder"),
+                        Topic.POWERTRAIN)):
+        monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+        monitor.observe(topic, msg)
+        assert "control" in monitor.finish()[0]
+        fine = Monitor(ESCAPE_HYBRID, 0.8, DT)
+        fine.observe(topic, msg)
+        fine.observe(Topic.NOTICE, Notice(kind="fault", source="speed", code="1"))   # not a rejection
+        fine.observe(Topic.NOTICE, Notice(kind="rejected", source="vehicle", code="no_control"))
+        assert fine.finish() == []
+
+
+def test_acceleration_outside_ellipse(monitor: Monitor) -> None:
+    monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-3.0, lat=3.0))
+    assert monitor.finish() == []
+    monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-9.0, lat=6.0))
+    assert "acceleration_ellipse" in monitor.finish()[0]
+
+
+def test_world_friction_change_tightens_the_ellipse(monitor: Monitor) -> None:
+    from overdrive.vehicle.plant import World
+    from overdrive.vehicle.sim_node import WORLD_TOPIC
+
+    monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
+    assert monitor.finish() == []
+    monitor.observe(WORLD_TOPIC, World(friction=0.2))
+    monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
+    assert "acceleration_ellipse" in monitor.finish()[0]
+
+
+def test_estop_disable_needs_full_brake(monitor: Monitor) -> None:
+    for i in range(100):
+        monitor.now_s = i * DT
+        monitor.observe(Topic.VEHICLE_STATUS, status("estop-disable", brake_pct=min(100.0, i * 10.0)))
+    assert monitor.finish() == []
+    bad = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    for i in range(100):
+        bad.now_s = i * DT
+        bad.observe(Topic.VEHICLE_STATUS, status("estop-disable", brake_pct=40.0))
+    assert "estop_precedence" in bad.finish()[0]
+
+
+def test_contact_reports_the_speed(monitor: Monitor) -> None:
+    Clock(monitor).at(0.0, 0.0)
+    Clock(monitor).at(0.0, 2.5, contact=True)
+    assert rules(monitor)["contact"]["amount"] == pytest.approx(2.5)
+
+
+def test_stop_margins_recorded_per_stop(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.path([0.0, 1.0], speed_mps=1.0)
+    clock.at(1.0, 0.0)
+    assert monitor.stop_margins_m == [], "a stop without any authorization has no margin"
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="a", distance_m=4.0))
+    clock.path([2.0, 3.0], speed_mps=1.0)
+    clock.at(3.0, 0.0)
+    assert monitor.stop_margins_m == [pytest.approx(2.0)]
+
+
+def test_physical_decel_has_a_floor_on_slopes_steeper_than_the_tyres() -> None:
+    assert physical_decel_mps2(ESCAPE_HYBRID, 0.1, -0.5, reverse=False) == pytest.approx(0.1)
+    assert physical_decel_mps2(ESCAPE_HYBRID, 0.8, 0.1, reverse=True) < \
+        physical_decel_mps2(ESCAPE_HYBRID, 0.8, 0.1, reverse=False)
+
+
+# --------------------------------------------------------------------------- whole runs
+
+def test_open_loop_throttle_with_brake_is_a_violation_exit_1() -> None:
+    data = scenario_dict(duration_s=4, events=[{"at_s": 1, "actuators": {"throttle_pct": 10, "brake_pct": 10}}])
+    result = run_scenario(parse_scenario(data), None)
+    assert result.exit_code == 1
+    assert any("throttle_while_braking" in v for v in result.summary["violations"])
+
+
+def test_contact_is_a_violation() -> None:
+    data = scenario_dict(duration_s=10, world={"obstacles": [{"x_m": 12, "y_m": 0}]}, events=[
+        {"at_s": 0.1, "engine": "on"}, {"at_s": 1.5, "gear": "drive"},
+        {"at_s": 2, "actuators": {"throttle_pct": 40}}])
+    result = run_scenario(parse_scenario(data), None)
+    assert result.exit_code == 1 and any("contact" in v for v in result.summary["violations"])
+
+
+def test_estop_button_stops_the_vehicle_with_full_brake() -> None:
+    data = scenario_dict(duration_s=10, events=[
+        {"at_s": 0.1, "engine": "on"}, {"at_s": 1.5, "gear": "drive"},
+        {"at_s": 2, "actuators": {"throttle_pct": 40}}, {"at_s": 5, "estop_button": True}],
+        expect=[{"final_speed_below_mps": 0.01}, {"final_safety_mode": "estop-disable"}])
+    result = run_scenario(parse_scenario(data), None)
+    assert result.summary["violations"] == []
+    assert float(result.trace[-1]["brake_pct"]) > 99.0 and result.trace[-1]["engine"] == "off"
