@@ -107,13 +107,15 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
                  realtime: bool = False, plot: bool = True,
                  progress: Callable[[float, float], None] | None = None,
                  period_s: float = DEFAULT_PERIOD_S, nodes: list[Node] | None = None,
-                 observers: Sequence[Any] = (), record_mcap: bool = True) -> RunResult:
+                 observers: Sequence[Any] = (), record_mcap: bool = True,
+                 position_noise_m: float = 0.0) -> RunResult:
     """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given.
 
     ``nodes`` replaces the scenario's own composition (e.g. the move server's simulation mode,
     where a fake planner stands in for the scenario player). ``observers``: extra bus taps with
     ``set_time(now_s)`` and ``observe(topic, msg)`` (the ``--live`` view); ``record_mcap``:
-    write ``run.mcap`` into the run folder.
+    write ``run.mcap`` into the run folder. ``position_noise_m``: the error bound of the pose
+    the judge takes as truth when there is no simulator (``overdrive drive``).
     """
     nodes = nodes if nodes is not None else build_nodes(scenario)
     bus = LocalBus()
@@ -141,7 +143,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         bus.tap(recorder.observe)
         for tap in taps:
             bus.tap(tap.observe)
-        monitor = make_monitor(scenario, period_s)
+        monitor = make_monitor(scenario, period_s, position_noise_m)
         bus.tap(monitor.observe)
         bus.tap_delivered(monitor.observe_delivered)
         runtime = LockstepRuntime(mcap.wrap(nodes) if mcap else nodes, bus, period_s)
@@ -176,10 +178,11 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
                      trace=recorder.rows, nodes={n.name: n for n in nodes})
 
 
-def make_monitor(scenario: Scenario, period_s: float) -> Monitor:
+def make_monitor(scenario: Scenario, period_s: float, position_noise_m: float = 0.0) -> Monitor:
     """The safety judge for ``scenario`` (the scenario is the SPSS client in set_speed runs)."""
     return Monitor(scenario.vehicle, scenario.spec.world.friction, period_s,
-                   spss_is_command="set_speed" in scenario.event_kinds)
+                   spss_is_command="set_speed" in scenario.event_kinds,
+                   position_noise_m=position_noise_m)
 
 
 def add_judgement(summary: dict[str, Any], monitor: Monitor) -> None:

@@ -228,3 +228,65 @@ def test_brake_stuck_released_ends_in_an_emergency_stop_with_the_engine_cut() ->
         {"at_s": 5.0, "actuator": {"brake": {"stuck": True}}}])
     assert any(e["kind"] == "estop" for e in result.summary["events"])
     assert result.trace[-1]["engine"] == "off"
+
+
+# --------------------------------------------------------------------------- one fault at a time
+
+MOVE_60 = {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 8, "curvature_1pm": 0}}
+OBSTACLE_45 = {"obstacles": [{"x_m": 45, "y_m": 0}]}
+
+
+def sensor(name: str, fault: str, at_s: float = 4.0, for_s: float = 3.0, **kw: float) -> dict:
+    return {"at_s": at_s, "sensor": {"name": name, "fault": fault, "for_s": for_s, **kw}}
+
+
+def actuator(at_s: float = 0.1, **faults: dict) -> dict:
+    return {"at_s": at_s, "actuator": faults}
+
+
+def issue(n: int, why: str) -> pytest.MarkDecorator:
+    return pytest.mark.xfail(strict=True, reason=f"issue {n}: {why}")
+
+
+FAULTS = [
+    pytest.param([sensor("gps", "dropout", for_s=2.0)], {}, id="gps-lost"),
+    pytest.param([sensor("gps", "noise", sigma=5.0)], {}, id="gps-jumping"),
+    pytest.param([sensor("gps", "freeze", for_s=30.0)], {}, id="gps-frozen-at-cruise"),
+    pytest.param([sensor("wheel_speed", "dropout")], {}, id="wheel-speed-lost"),
+    pytest.param([sensor("wheel_speed", "freeze", at_s=0.2, for_s=30.0)], {}, id="wheel-speed-frozen"),
+    pytest.param([actuator(brake={"effectiveness": 0.5})], {}, id="brake-weak-50"),
+    pytest.param([actuator(throttle={"effectiveness": 0.3})], {}, id="throttle-weak-30"),
+    pytest.param([actuator(steering={"rate_scale": 0.2})], {}, id="steering-slow"),
+    pytest.param([{"at_s": 0.4, "duplicate": {"channel": "move", "for_s": 10}},
+                  {"at_s": 5, "move": {"distance_m": 30, "maxspeed_mps": 6, "curvature_1pm": 0}}],
+                 {}, id="move-duplicated"),
+    pytest.param([{"at_s": 5, "drop": {"channel": "set_speed", "for_s": 1}}], {}, id="spss-lost-1s"),
+    pytest.param([{"at_s": 5, "drop": {"channel": "pedals", "for_s": 1}}], {}, id="pedals-lost-1s"),
+    pytest.param([sensor("radar", "dropout", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-lost",
+                 marks=issue(16, "a silent radar gives no notice and no speed reduction")),
+    pytest.param([sensor("radar", "freeze", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-frozen",
+                 marks=issue(16, "a frozen radar is trusted")),
+    pytest.param([actuator(brake={"effectiveness": 0.2})], {}, id="brake-weak-20",
+                 marks=issue(16, "weak brakes are learned only once braking hard")),
+    pytest.param([actuator(at_s=5.0, throttle={"stuck": True})], {}, id="throttle-stuck-at-cruise",
+                 marks=issue(16, "a stuck throttle is never cut")),
+]
+
+
+@pytest.mark.parametrize(("faults", "world"), FAULTS)
+def test_one_fault_during_a_60_m_move(faults: list[dict], world: dict) -> None:
+    no_violation(run(duration_s=40, world=world, events=[MOVE_60, *faults]))
+
+
+@issue(16, "reversing has no radar and no enforced speed or distance limit")
+def test_reversing_towards_an_unreported_obstacle_does_not_hit_it() -> None:
+    no_violation(run(duration_s=20, world={"obstacles": [{"x_m": -8, "y_m": 0}]}, events=[
+        {"at_s": 0.5, "reverse": {"distance_m": 12, "maxspeed_mps": 2, "curvature_1pm": 0}}]))
+
+
+@issue(16, "rollback on a hill start hits the car parked behind")
+def test_hill_start_rollback_does_not_hit_the_car_behind() -> None:
+    no_violation(run(duration_s=20, world={"grade_percent": 15, "obstacles": [{"x_m": -6, "y_m": 0}]},
+                     events=[{"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
+                             {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 3,
+                                                    "curvature_1pm": 0}}]))

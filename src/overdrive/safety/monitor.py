@@ -150,10 +150,13 @@ class Monitor:
     def __init__(self, params: VehicleParams, friction: float, period_s: float,
                  pedal_sources: frozenset[str] = frozenset({"speed", "scenario"}),
                  steer_sources: frozenset[str] = frozenset({"driving", "scenario"}),
-                 *, spss_is_command: bool = False) -> None:
+                 *, spss_is_command: bool = False, position_noise_m: float = 0.0) -> None:
         """``spss_is_command``: the scenario itself is the speed server's client (set_speed runs),
-        so an SPSS it issues is a command (it ends a hold) rather than the stack's output."""
+        so an SPSS it issues is a command (it ends a hold) rather than the stack's output.
+        ``position_noise_m``: where "truth" is a measured pose (``overdrive drive`` against an
+        XGV), its error bound, added to every distance tolerance."""
         self.params = params
+        self.position_noise_m = position_noise_m
         self.period_s = period_s
         self.pedal_sources = pedal_sources
         self.steer_sources = steer_sources
@@ -336,7 +339,8 @@ class Monitor:
         now = interruption(devices)
         if self.interrupt is not None and now is None:
             speed = abs(self.speed_mps)
-            allowed = self._shortest_stop(speed, self.speed_mps < 0.0) + MOTION_TOLERANCE_M
+            allowed = (self._shortest_stop(speed, self.speed_mps < 0.0) + MOTION_TOLERANCE_M
+                       + self.position_noise_m)
             self.after_interrupt = (self.progress_m, allowed, self.now_s)
         if now in MANUAL and not self._manual():
             self.ends.clear()               # the human drives: earlier authorizations are void
@@ -394,7 +398,7 @@ class Monitor:
         p = self.progress_m
         for source, end in self.ends.items():
             overrun = (end.end_m - p) if end.reverse else (p - end.end_m)
-            if overrun > AUTHORIZATION_TOLERANCE_M + 1e-9:
+            if overrun > AUTHORIZATION_TOLERANCE_M + self.position_noise_m + 1e-9:
                 self._violate("authorization", f"authorization[{source}]", overrun, "m",
                               f"passed the end of {end.label} (issued at t={end.issued_s:.2f} s) "
                               f"by {overrun:.3f} m", worst=True)
@@ -414,7 +418,7 @@ class Monitor:
             self.water_m = min(self.water_m, p)
             travel = p - self.water_m
             what = "moved forward {:.3f} m under a REVERSE"
-        if travel > DIRECTION_TOLERANCE_M:
+        if travel > DIRECTION_TOLERANCE_M + self.position_noise_m:
             self._violate("direction", "direction", travel, "m", what.format(travel), worst=True)
 
     def _speed(self) -> None:
