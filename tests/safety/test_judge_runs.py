@@ -198,6 +198,14 @@ def test_override_release_does_not_resume_the_stale_move() -> None:
         {"at_s": 5, "manual_override": True}, {"at_s": 10, "manual_override": False}]))
 
 
+@pytest.mark.xfail(strict=True, reason="issue 17: after an e-stop disable is released the engine "
+                                       "restarts and the stale MOVE is finished")
+def test_estop_release_does_not_resume_the_stale_move() -> None:
+    no_violation(run(duration_s=40, events=[
+        {"at_s": 0.5, "move": {"distance_m": 200, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 5, "safestop": "stop"}, {"at_s": 10, "safestop": "run"}]))
+
+
 @pytest.mark.xfail(strict=True, reason="issue 17: a STOP can be overtaken by a reordered MOVE")
 def test_reordered_stop_is_not_overtaken() -> None:
     no_violation(run(events=[
