@@ -67,7 +67,11 @@ Hint = Literal["none", "suggest_upshift", "suggest_downshift", "suggest_slowdown
 
 
 class MoveCommand(Message, frozen=True):
-    """MOVE / REVERSE / STOP from the planner (seed 004 ``MsgMOVE``/``MsgREVERSE``/``MsgSTOP``)."""
+    """MOVE / REVERSE / STOP from the planner (seed 004 ``MsgMOVE``/``MsgREVERSE``/``MsgSTOP``).
+
+    ``command_id`` increases with every command the planner issues: a command whose id is not
+    newer than one already seen is rejected as ``stale`` (reordered or repeated on the way).
+    """
 
     kind: MoveKind
     command_id: int = 0
@@ -82,7 +86,7 @@ class MoveReply(Message, frozen=True):
     command_id: int
     kind: MoveKind
     accepted: bool
-    code: Literal["ok", "infeasible", "busy", "not_ready", "invalid"] = "ok"
+    code: Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale"] = "ok"
     message: str = ""
 
 

@@ -125,13 +125,12 @@ def test_vehicle_sim_keeps_the_last_readings_without_any_fault() -> None:
 
 
 def test_shipped_scenarios_are_judged() -> None:
-    """Every shipped scenario passes the judge except the known defects (xfails below)."""
+    """Every shipped scenario passes the judge."""
     from overdrive.scenario import load_scenario
 
-    known = {"xgv-safestop-pause.yaml"}   # issue 17: the pause resumes the stale MOVE
     failing = []
     for path in sorted((ROOT / "scenarios").glob("*.yaml")):
-        if path.name in known or path.name.startswith(("xgv-", "sweep-")):
+        if path.name.startswith(("xgv-", "sweep-")):
             continue      # xgv runs need sockets (tests/xgv); sweeps are run by test_sweep
         result = run_scenario(load_scenario(path), None, keep_trace=False, plot=False,
                               record_mcap=False)
@@ -184,29 +183,53 @@ def test_throttle_stuck_while_accelerating_does_not_overrun() -> None:
         {"at_s": 1.5, "actuator": {"throttle": {"stuck": True}}}]))
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17: a pause resumes the stale MOVE")
-def test_pause_release_does_not_resume_the_stale_move() -> None:
-    no_violation(run(events=[
-        {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 8, "curvature_1pm": 0}},
-        {"at_s": 5, "safestop": "pause"}, {"at_s": 10, "safestop": "run"}]))
+INTERRUPTIONS = {
+    "pause": ({"safestop": "pause"}, {"safestop": "run"}),
+    "override": ({"manual_override": True}, {"manual_override": False}),
+    "emergency-override": ({"emergency_manual_override": True}, {"emergency_manual_override": False}),
+    "estop": ({"safestop": "stop"}, {"safestop": "run"}),
+    "estop-button": ({"estop_button": True}, {"estop_button": False}),
+}
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17: releasing a manual override resumes the stale MOVE")
-def test_override_release_does_not_resume_the_stale_move() -> None:
-    no_violation(run(events=[
-        {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 8, "curvature_1pm": 0}},
-        {"at_s": 5, "manual_override": True}, {"at_s": 10, "manual_override": False}]))
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("kind", sorted(INTERRUPTIONS))
+@pytest.mark.parametrize(("at_s", "speed_mps"), [(2.0, 4.0), (6.0, 8.0)])
+def test_no_motion_after_an_interruption_until_a_new_move(preset: str, kind: str, at_s: float,
+                                                          speed_mps: float) -> None:
+    """Issue 17: the interrupted MOVE is discarded; a MOVE issued later goes through runwait."""
+    begin, end = INTERRUPTIONS[kind]
+    new_move_s = at_s + 8.0
+    result = run(vehicle=preset, duration_s=new_move_s + 25.0, events=[
+        {"at_s": 0.5, "move": {"distance_m": 200, "maxspeed_mps": speed_mps, "curvature_1pm": 0}},
+        {"at_s": at_s, **begin}, {"at_s": at_s + 4.0, **end},
+        {"at_s": new_move_s, "move": {"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}}])
+    no_violation(result)
+    events = result.summary["events"]
+    assert [e for e in events if e["kind"] == "interrupted" and at_s <= e["t_s"] <= at_s + 0.1]
+    rows = result.trace
+    still = [abs(float(r["speed_mps"])) for r in rows
+             if at_s + 4.0 + 1.0 <= float(r["t_s"]) <= new_move_s + 5.0]
+    assert max(still) < 0.05, "standing from the interruption's end until runwait is over"
+    runwait = [e for e in events if e["kind"] == "speed_state" and e["to"] == "runwait"
+               and e["t_s"] >= new_move_s]
+    assert runwait, "the new MOVE starts through the 5 s runwait"
+    moved = float(rows[-1]["odometer_m"]) - next(float(r["odometer_m"]) for r in rows
+                                                 if float(r["t_s"]) >= new_move_s)
+    assert 9.0 < moved <= 10.0, "and then the new MOVE is driven"
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17: after an e-stop disable is released the engine "
-                                       "restarts and the stale MOVE is finished")
-def test_estop_release_does_not_resume_the_stale_move() -> None:
-    no_violation(run(duration_s=40, events=[
+def test_a_pause_goes_through_paused() -> None:
+    result = run(events=[
         {"at_s": 0.5, "move": {"distance_m": 200, "maxspeed_mps": 8, "curvature_1pm": 0}},
-        {"at_s": 5, "safestop": "stop"}, {"at_s": 10, "safestop": "run"}]))
+        {"at_s": 5, "safestop": "pause"}, {"at_s": 10, "safestop": "run"}])
+    no_violation(result)
+    states = [e["to"] for e in result.summary["events"] if e["kind"] == "speed_state"]
+    assert "paused" in states and result.summary["final"]["speed_state"] == "paused"
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17: a STOP can be overtaken by a reordered MOVE")
+@pytest.mark.xfail(strict=True, reason="issue 17: the STOP is no longer overtaken (command ids), "
+                                       "but it is braked on the planning curve, not at the limit")
 def test_reordered_stop_is_not_overtaken() -> None:
     no_violation(run(events=[
         {"at_s": 0.5, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},

@@ -117,10 +117,10 @@ def test_not_ready_without_position_or_in_pause(preset) -> None:
     node = MoveServer(preset)
     out = node.step(0.0, [(Topic.MOVE_COMMAND, cmd())])
     assert last(out, Topic.MOVE_REPLY).code == "not_ready"
-    out = node.step(0.01, [*sensors(preset, mode="software-pause"), (Topic.MOVE_COMMAND, cmd())])
+    out = node.step(0.01, [*sensors(preset, mode="software-pause"), (Topic.MOVE_COMMAND, cmd(cid=2))])
     reply = last(out, Topic.MOVE_REPLY)
     assert reply.code == "not_ready" and "software-pause" in reply.message
-    out = node.step(0.02, [*sensors(preset, estop=True), (Topic.MOVE_COMMAND, cmd())])
+    out = node.step(0.02, [*sensors(preset, estop=True), (Topic.MOVE_COMMAND, cmd(cid=3))])
     assert last(out, Topic.MOVE_REPLY).code == "not_ready"
 
 
@@ -305,3 +305,102 @@ def test_speed_reduction_notice_when_it_starts(preset) -> None:
     first = node2.step(0.0, [*sensors(preset, speed=2.0, pitch=steep), (Topic.MOVE_COMMAND, cmd(d=50.0, v=4.0))])
     codes = [m.code for m in all_of(first, Topic.NOTICE) if m.kind == "speed_reduction"]
     assert codes == ["steep"]
+
+
+# ----------------------------------------------------------------------------- ordering (issue 17)
+
+@pytest.mark.parametrize("older", [0, 1, 2])
+def test_a_command_not_newer_than_one_seen_is_stale(preset, older: int) -> None:
+    node = MoveServer(preset)
+    out = run(node, 0.0, 0.1, (cmd(d=50.0, cid=2),))
+    assert last(out, Topic.MOVE_REPLY).accepted
+    out = node.step(0.1, [*sensors(preset), (Topic.MOVE_COMMAND, cmd(d=5.0, cid=older))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.accepted, reply.code, reply.command_id) == (False, "stale", older)
+    assert "not newer than 2" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(50.0), "the newer command runs on"
+
+
+def test_a_stop_outranks_an_earlier_move_delivered_after_it(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    out = node.step(0.5, [*sensors(preset, speed=3.0), (Topic.MOVE_COMMAND, cmd("stop", cid=3)),
+                          (Topic.MOVE_COMMAND, cmd(d=80.0, cid=2))])
+    replies = all_of(out, Topic.MOVE_REPLY)
+    assert [(r.kind, r.accepted, r.code) for r in replies] == [("stop", True, "ok"),
+                                                               ("move", False, "stale")]
+    assert last(out, Topic.ADVANCE).distance_m == 0.0 and node.phase == "stopping"
+
+
+def test_a_rejected_command_raises_the_bar_but_a_malformed_one_does_not(preset) -> None:
+    node = MoveServer(preset)
+    out = node.step(0.0, [*sensors(preset, mode="software-pause"), (Topic.MOVE_COMMAND, cmd(cid=5))])
+    assert last(out, Topic.MOVE_REPLY).code == "not_ready"
+    out = node.step(0.01, [*sensors(preset), (Topic.MOVE_COMMAND, cmd(cid=5))])
+    assert last(out, Topic.MOVE_REPLY).code == "stale", "a repeat of a rejected command"
+    bad = MoveCommand(kind="move", command_id=99, distance_m=math.nan, maxspeed_mps=3.0)
+    out = node.step(0.02, [*sensors(preset), (Topic.MOVE_COMMAND, bad)])
+    assert last(out, Topic.MOVE_REPLY).code == "invalid"
+    out = node.step(0.03, [*sensors(preset), (Topic.MOVE_COMMAND, cmd(cid=6))])
+    assert last(out, Topic.MOVE_REPLY).accepted, "a malformed id 99 must not lock out id 6"
+
+
+# ----------------------------------------------------------------------------- interruptions (issue 17)
+
+@pytest.mark.parametrize(("mode", "engine", "hold"), [
+    ("estop-pause", "running", "paused"), ("software-pause", "running", "paused"),
+    ("manual-override", "running", "paused"), ("manual-override", "off", "parked"),
+    ("emergency-manual-override", "running", "paused"), ("estop-disable", "running", "parked"),
+    ("estop-disable", "off", "parked")])
+def test_an_interruption_discards_the_command_and_holds(preset, mode: str, engine: str,
+                                                        hold: str) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    out = node.step(0.5, sensors(preset, speed=3.0, mode=mode, engine=engine))
+    notice = last(out, Topic.NOTICE)
+    assert (notice.kind, notice.code) == ("interrupted", mode) and "command 1 discarded" in notice.reason
+    assert node.phase == "interrupted" and node.active is None
+    out = run(node, 0.51, 1.0, mode=mode, engine=engine)
+    assert last(out, Topic.DRIVE_MODE).state == hold
+    out = run(node, 1.51, 1.0)              # the interruption is over: nothing moves
+    assert {m.distance_m for m in all_of(out, Topic.ADVANCE)} == {0.0}
+    assert {m.speed_mps for m in all_of(out, Topic.MAX_SPEED)} == {0.0}
+    assert last(out, Topic.DRIVE_MODE).state == hold and node.phase == "interrupted"
+    out = run(node, 2.51, 0.1, (cmd(d=20.0, cid=2),))
+    assert last(out, Topic.MOVE_REPLY).accepted and last(out, Topic.DRIVE_MODE).state == "run"
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(20.0)
+
+
+def test_commands_during_an_interruption_say_why(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    out = run(node, 0.5, 0.2, (cmd(d=20.0, cid=2),), mode="estop-pause")
+    reply = last(out, Topic.MOVE_REPLY)
+    assert reply.code == "not_ready" and "estop-pause" in reply.message
+
+
+def test_losing_computer_speed_control_is_an_interruption(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    inbox = sensors(preset, speed=3.0)
+    status = inbox[0][1]
+    inbox[0] = (Topic.VEHICLE_STATUS, VehicleStatus(**{
+        **{f: getattr(status, f) for f in status.__struct_fields__}, "computer_speed": False}))
+    out = node.step(0.5, inbox)
+    assert last(out, Topic.NOTICE).kind == "interrupted" and node.phase == "interrupted"
+
+
+def test_no_interruption_before_any_command(preset) -> None:
+    """A vehicle found in a pause at start-up (an XGV before control is taken) is not 'interrupted'."""
+    node = MoveServer(preset)
+    out = run(node, 0.0, 0.5, mode="software-pause")
+    assert node.phase == "idle" and not [n for n in all_of(out, Topic.NOTICE) if n.kind == "interrupted"]
+
+
+def test_a_radar_estop_is_not_overridden_by_an_interruption(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=80.0, v=8.0, cid=1),), speed=8.0)
+    run(node, 0.5, 0.05, speed=8.0, radar=3.0)
+    assert node.phase == "estopped"
+    run(node, 0.55, 0.2, speed=4.0, mode="estop-pause", radar=3.0)
+    assert node.phase == "estopped" and node.latched

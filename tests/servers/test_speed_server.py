@@ -401,7 +401,6 @@ INVALID = [
     (dict(gear="overdrive"), FaultCode.UNKNOWN_GEAR),
     (dict(gear="drive"), FaultCode.UNKNOWN_GEAR),      # an Escape gear, not a Ranger one
     (dict(gear="low"), FaultCode.GEAR_CHANGE_OUTSIDE_IDLE),
-    (dict(state="idle", gear="low"), FaultCode.GEAR_CHANGE_OUTSIDE_IDLE),
     (dict(gear="neutral"), FaultCode.NO_DRIVE_GEAR),
 ]
 
@@ -418,8 +417,11 @@ def test_invalid_request_in_run_is_a_fault_and_not_executed(change, code):
         rig.tick(bad)
         assert rig.replies[-1].fault == code and rig.replies[-1].fault_message
     assert rig.faults() == [code]                     # one Notice for a run of identical requests
-    assert (rig.server.goal, rig.server.goal_gear, rig.server.target_mps,
-            rig.server.rate_mps2) == before
+    assert (rig.server.goal, rig.server.goal_gear) == before[:2], "the request is not executed"
+    # ... and the vehicle is brought to a controlled stop (issue 17): never faster than allowed
+    assert rig.server.target_mps == 0.0
+    too_hard = change.get("accel", 0.0) > 10.0 and math.isfinite(change["accel"])
+    assert rig.server.rate_mps2 == (10.0 if too_hard else max(before[3], 2.5))
     assert rig.server.state == "run" and rig.vehicle.gear == "high"
     rig.run(3.0, spss("run", 3.0, 1.0))
     assert rig.replies[-1].fault == 0                 # cleared by valid requests after the hold
@@ -610,3 +612,39 @@ def test_config_is_a_frozen_msgspec_struct_with_the_seed_defaults():
     with pytest.raises(AttributeError):
         cfg.runwait_s = 1.0  # type: ignore[misc]
     assert msgspec.json.decode(msgspec.json.encode(cfg), type=SpeedServerConfig) == cfg
+
+
+# ----------------------------------------------------------------------------- invalid requests fail safe (issue 17)
+
+@pytest.mark.parametrize("speed", [3.0, 8.0])
+def test_a_stop_harder_than_allowed_stops_at_the_allowed_maximum(speed: float):
+    rig = Rig("escape-hybrid", state="run", gear="drive")
+    rig.run(8.0, spss("run", speed, 2.0, gear="drive"))
+    assert rig.vehicle.speed_mps > speed - 0.5
+    rig.run(3.0, spss("run", 0.0, 12.0, gear="drive"))
+    assert FaultCode.OUT_OF_RANGE in rig.faults()
+    assert rig.vehicle.speed_mps < 0.05, "the vehicle stopped although the request was invalid"
+
+
+def test_a_stream_of_only_invalid_requests_trips_the_watchdog():
+    rig = Rig("escape-hybrid", state="run", gear="drive")
+    rig.run(3.0, spss("run", 3.0, 1.0, gear="drive"))
+    t_last_valid = rig.last_request_s
+    rig.run(1.0, spss("run", 3.0, math.nan, gear="drive"))
+    estops = [t for t, n in rig.notices if n.kind == "estop"]
+    assert estops, "invalid requests do not feed the watchdog"
+    assert estops[0] - t_last_valid <= 0.2 + PERIOD_S + 1e-9
+    assert FaultCode.SPSS_TIMEOUT in rig.faults()
+
+
+@pytest.mark.parametrize("speed", [2.0, 5.0])
+def test_idle_with_a_new_gear_from_run_stops_then_shifts(speed: float):
+    """Seed 001: "go to idle and specify a new gear" is the way to change gear from run."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(6.0, spss("run", speed, 2.0, gear="high"))
+    assert rig.vehicle.speed_mps > speed - 0.5
+    done = rig.run(15.0, spss("idle", 0.0, 2.0, gear="low"),
+                   until=lambda r: r.vehicle.gear == "low" and r.server.state == "idle")
+    assert done and rig.faults() == []
+    names = rig.state_names()
+    assert names[-3:] == ["idle", "shifting", "idle"] and "run" in names

@@ -71,14 +71,7 @@ def test_motion_profile_on_a_curve_matches_embedded() -> None:
     assert memory["final"] == jaus["final"] and memory["events"] == jaus["events"]
 
 
-STALE_AFTER_PAUSE = pytest.mark.xfail(
-    strict=True, reason="issue 17: after the SafeStop pause the stack resumes the stale MOVE "
-                        "(the judge's unintended_motion rule)")
-
-
-@pytest.mark.parametrize("name", [
-    pytest.param(name, marks=STALE_AFTER_PAUSE) if name == "xgv-safestop-pause.yaml" else name
-    for name in sorted(p.name for p in SCENARIOS.glob("xgv-*.yaml"))])
+@pytest.mark.parametrize("name", sorted(p.name for p in SCENARIOS.glob("xgv-*.yaml")))
 def test_shipped_xgv_scenarios_hold(name: str) -> None:
     result = run_scenario(load_scenario(SCENARIOS / name), None, keep_trace=False)
     assert result.summary["violations"] == [], result.summary["violations"]

@@ -15,7 +15,15 @@ never the speed server directly:
 - ``SteeringRequest``: the command's curvature.
 
 A new command replaces the current one at once; without one the vehicle stops at the end of
-the distance (the authorization runs out). Progress comes from the GPS/INS odometer.
+the distance (the authorization runs out). Progress comes from the GPS/INS odometer. Command
+ids must increase: a command not newer than one already seen (a reordered or repeated message)
+is rejected as ``stale``, so a STOP is never overtaken by an earlier MOVE.
+
+Interruptions are latched: when the vehicle leaves drive-by-wire (a SafeStop pause, a software
+pause, a manual override, an e-stop disable) or the computer loses speed control, the active
+command is discarded and the speed server is asked to pause (or to park, when the engine is
+off: it is never restarted without a command that needs it). Nothing moves when the
+interruption ends; the next command (a new id) starts again through the speed server's runwait.
 
 Independently of the planner, the forward radar is checked every period: a target closer than
 the stopping distance (dynamics, with the brake estimate) plus a margin is an emergency stop
@@ -71,10 +79,11 @@ from overdrive.vehicle.presets import GearTable, VehicleParams
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
+ENGINE_CUT_MODES = frozenset({"estop-disable", "inactive"})   # seed 000: the XGV kills the engine
 
 # --------------------------------------------------------------------------- phases (table)
 
-PHASES = ("idle", "starting", "shifting", "moving", "stopping", "estopped")
+PHASES = ("idle", "starting", "shifting", "moving", "stopping", "estopped", "interrupted")
 """``MoveStatus.phase`` values."""
 
 EVENTS: dict[str, str] = {
@@ -87,18 +96,24 @@ EVENTS: dict[str, str] = {
     "done": "the distance is used up and the vehicle stands",
     "stopped": "the vehicle stands after a STOP",
     "estop": "radar target inside the stopping distance plus margin",
+    "interrupt": "the vehicle left drive-by-wire or speed control: the command is discarded",
 }
 
 _COMMANDS = {"command_start": "starting", "command_shift": "shifting", "command_run": "moving"}
 
+_INTERRUPT = {"interrupt": "interrupted"}
+
 TRANSITIONS: dict[str, dict[str, str]] = {
-    "idle": {**_COMMANDS, "stop_cmd": "stopping", "estop": "estopped"},
-    "starting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped"},
-    "shifting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped"},
+    "idle": {**_COMMANDS, "stop_cmd": "stopping", "estop": "estopped", **_INTERRUPT},
+    "starting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped",
+                 **_INTERRUPT},
+    "shifting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped",
+                 **_INTERRUPT},
     "moving": {**_COMMANDS, "lost": "starting", "done": "idle", "stop_cmd": "stopping",
-               "estop": "estopped"},
-    "stopping": {**_COMMANDS, "stopped": "idle", "estop": "estopped"},
+               "estop": "estopped", **_INTERRUPT},
+    "stopping": {**_COMMANDS, "stopped": "idle", "estop": "estopped", **_INTERRUPT},
     "estopped": dict(_COMMANDS),
+    "interrupted": {**_COMMANDS, "stop_cmd": "interrupted", "estop": "estopped"},
 }
 """``TRANSITIONS[phase][event] -> phase``; an event a phase does not list leaves it as is."""
 
@@ -169,6 +184,7 @@ class MoveServer:
         self.phase = "idle"
         self.active: ActiveCommand | None = None
         self.last_command_id = 0
+        self.newest_command_id: int | None = None   # the newest well-formed command seen
         self.direction = "forward"
         self.curvature_1pm = 0.0
         self.engaged = False            # a MOVE/REVERSE has been accepted: keep the engine up
@@ -394,6 +410,15 @@ class MoveServer:
             command_id = 0
         if kind not in ("move", "reverse", "stop"):
             kind = "stop"
+        if verdict is None or verdict.code != "invalid":
+            newest = self.newest_command_id
+            if newest is not None and command_id <= newest:
+                out.append((Topic.MOVE_REPLY, MoveReply(
+                    command_id=command_id, kind=kind, accepted=False, code="stale",
+                    message=f"command_id {command_id} is not newer than {newest}: "
+                            "reordered or repeated")))
+                return
+            self.newest_command_id = command_id
         if verdict is not None:
             out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
                                                     accepted=False, code=verdict.code,
@@ -444,6 +469,8 @@ class MoveServer:
         self.remaining_m = self._remaining()
         if self._collision_check(now_s, out):
             return "estop"
+        if self._interruption(out):
+            return "interrupt"
         phase = self.phase
         if phase == "estopped":
             if self.fault_active and self._stopped(now_s):
@@ -461,6 +488,26 @@ class MoveServer:
         if phase == "stopping" and self._stopped(now_s):
             return "stopped"
         return None
+
+    def _interruption(self, out: list) -> bool:
+        """True on the period an engaged vehicle is interrupted: the command is discarded."""
+        status = self.status
+        if (not self.engaged or self.phase == "estopped" or status is None
+                or (status.safety_mode == "drive-by-wire" and status.computer_speed)):
+            return False
+        discarded = self.active
+        self.active = None
+        self.engaged = False
+        engine_off = status.engine != "running" or status.safety_mode in ENGINE_CUT_MODES
+        self.hold_state = "parked" if engine_off else "paused"
+        what = (f"command {discarded.command.command_id} discarded" if discarded is not None
+                else "no command active")
+        out.append((Topic.NOTICE, Notice(
+            kind="interrupted", source=SOURCE, code=status.safety_mode,
+            reason=f"safety mode {status.safety_mode}"
+                   f"{'' if status.computer_speed else ', no computer speed control'}: {what}; "
+                   f"nothing moves until a new command")))
+        return True
 
     def _collision_check(self, now_s: float, out: list) -> bool:
         """The VORAD failsafe: True on the period an emergency stop starts."""

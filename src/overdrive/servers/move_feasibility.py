@@ -32,7 +32,7 @@ from overdrive.messages import MoveCommand
 from overdrive.validation import finite
 from overdrive.vehicle.presets import VehicleParams
 
-ReplyCode = Literal["ok", "infeasible", "busy", "not_ready", "invalid"]
+ReplyCode = Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale"]
 KINDS = ("move", "reverse", "stop")
 CURVATURE_TOL_1PM = 1e-9   # float slack on the turning-radius limit
 

@@ -89,6 +89,8 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
                                          # below the plant's redline fade (seed 001 gear limits)
     max_request_speed_mps: float = 70.0  # same bound as the scenario file's speeds
     max_request_accel_mps2: float = 10.0  # above any preset's full-brake deceleration (9 m/s^2)
+    invalid_stop_decel_mps2: float = 2.5  # an invalid request stops the vehicle at least this hard:
+                                          # the XGV's own pause deceleration (seed 000, xgv.md)
     fault_hold_s: float = 1.0            # a fault stays in the replies at least this long
     hint_hold_s: float = 1.0             # a hint stays at least this long (no chatter)
     slip_min_mps: float = 0.5            # wheel vs ground speed disagreement that is slipping ...
@@ -189,7 +191,6 @@ class SpeedServer:
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
         for spss in requests:
-            self.spss_watchdog.feed(now_s)
             client_fault_edge |= self._handle_request(now_s, spss, out)
             reply_faults.append((self.fault, self.fault_message))
         watchdog_edge = self._watchdog(now_s, out)
@@ -306,8 +307,13 @@ class SpeedServer:
     # ------------------------------------------------------------------ requests
 
     def _handle_request(self, now_s: float, spss: SetSpeed, out: list) -> bool:
-        """Validate and apply one SPSS; return True on a new client fault."""
+        """Validate and apply one SPSS; return True on a new client fault.
+
+        Only a well-formed request feeds the watchdog (a client fault is one: it asks for the
+        stop). An invalid request is not executed and stops the vehicle (issue 17).
+        """
         if spss.fault != 0:
+            self.spss_watchdog.feed(now_s)
             new = spss.fault != self.client_fault
             self.client_fault = spss.fault
             if new:
@@ -321,6 +327,7 @@ class SpeedServer:
         self.client_fault = 0
         invalid = self._validate(spss)
         if invalid is not None:
+            self._stop_on_invalid(spss)
             code, message = invalid
             if self.last_rejection != invalid:
                 self.last_rejection = invalid
@@ -329,6 +336,7 @@ class SpeedServer:
                 self.fault, self.fault_message, self.fault_since_s = code, message, now_s
             return False
         self.last_rejection = None
+        self.spss_watchdog.feed(now_s)
         if self.latched:
             if self.sensor_lost or not self.stopped:
                 return False   # not executed: the e-stop holds until the vehicle has stopped
@@ -363,13 +371,26 @@ class SpeedServer:
             return None   # seed 001: "Gear selection only matters for run" (and idle's shifts)
         if spss.state == "run" and gear.direction == 0:
             return FaultCode.NO_DRIVE_GEAR, fault_message(FaultCode.NO_DRIVE_GEAR, gear=spss.gear)
-        if self.state in ("runwait", "shifting", "run") and spss.gear != self.goal_gear:
+        if (spss.state == "run" and self.state in ("runwait", "shifting", "run")
+                and spss.gear != self.goal_gear):
+            # seed 001: "go to idle and specify a new gear": idle with a new gear is accepted
+            # (the vehicle stops, goes idle, then shifts); run with a new gear is not
             return FaultCode.GEAR_CHANGE_OUTSIDE_IDLE, fault_message(
                 FaultCode.GEAR_CHANGE_OUTSIDE_IDLE, gear=spss.gear, state=self.state)
         if self.state == "idle" and spss.gear != self.gear_cmd and not self.stopped:
             return FaultCode.SHIFT_WHILE_MOVING, fault_message(
                 FaultCode.SHIFT_WHILE_MOVING, gear=spss.gear, speed_mps=self.speed_filt_mps)
         return None
+
+    def _stop_on_invalid(self, spss: SetSpeed) -> None:
+        """A controlled stop in the current state: a request to stop harder than allowed stops at
+        the allowed maximum; anything else at least at ``invalid_stop_decel_mps2``."""
+        cfg = self.config
+        self.target_mps = 0.0
+        if math.isfinite(spss.accel_mps2) and spss.accel_mps2 > cfg.max_request_accel_mps2:
+            self.rate_mps2 = cfg.max_request_accel_mps2
+        else:
+            self.rate_mps2 = max(self.rate_mps2, cfg.invalid_stop_decel_mps2)
 
     def _accept(self, spss: SetSpeed) -> None:
         if spss.state == "paused" and self.auto_parked:
