@@ -7,7 +7,6 @@ Endpoints are loopback-only unless ``--allow-remote``; see docs/multiprocess.md.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import sys
@@ -33,16 +32,12 @@ def _usage(message: str) -> None:
 
 
 def _load(path: Path) -> Any:
-    from overdrive.scenario import ScenarioError, load_scenario, parse_scenario
+    from overdrive.scenario import ScenarioError, load_scenario
 
     try:
-        if path.suffix == ".json":   # the launcher hands nodes the validated spec as JSON
-            return parse_scenario(json.loads(path.read_text(encoding="utf-8")), str(path))
         return load_scenario(path)
-    except (OSError, ValueError) as exc:
-        if isinstance(exc, ScenarioError):
-            _usage(str(exc))
-        _usage(f"{path}: {exc}")
+    except ScenarioError as exc:
+        _usage(str(exc))
 
 
 def _zenoh_options(fn: Any) -> Any:

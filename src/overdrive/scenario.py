@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import msgspec
-import yaml
 
+from overdrive.safe_yaml import MAX_DEPTH, MAX_NODES, InputError, load_json, load_yaml, read_text
 from overdrive.vehicle.presets import VehicleParams, VehicleSpecError, vehicle_from_spec
 
 # Bounds: generous physical limits, chosen to catch typos and unit mistakes, not to restrict use.
@@ -299,23 +299,37 @@ def _split_validation_error(exc: msgspec.ValidationError) -> tuple[str, str]:
     return path or "(top level)", msg[0].lower() + msg[1:] if msg else "invalid"
 
 
-def _check_finite(value: Any, path: str, source: str) -> None:
-    """Reject NaN/inf anywhere in raw data (bounds catch most, this catches the rest)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        raise ScenarioError(source, path or "(top level)", f"must be a finite number, got {value}")
-    if isinstance(value, dict):
-        for k, v in value.items():
-            _check_finite(v, f"{path}.{k}" if path else str(k), source)
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            _check_finite(v, f"{path}[{i}]", source)
+def _check_tree(data: Any, source: str) -> None:
+    """Reject NaN/inf anywhere in raw data (bounds catch most, this catches the rest), nesting
+    deeper than ``MAX_DEPTH`` and more than ``MAX_NODES`` values.
+
+    A loop over an explicit stack, counting what it visits: data built in Python may share
+    sub-lists (what an alias bomb loads to), which a plain recursive walk visits exponentially
+    often and deep data overflows it.
+    """
+    pending: list[tuple[Any, str, int]] = [(data, "", 0)]
+    visited = 0
+    while pending:
+        value, path, depth = pending.pop()
+        visited += 1
+        if visited > MAX_NODES:
+            raise ScenarioError(source, "", f"more than {MAX_NODES} values")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ScenarioError(source, path or "(top level)", f"must be a finite number, got {value}")
+        if isinstance(value, (dict, list)) and depth >= MAX_DEPTH:
+            raise ScenarioError(source, path or "(top level)", f"nested deeper than {MAX_DEPTH} levels")
+        if isinstance(value, dict):
+            pending.extend((v, f"{path}.{k}" if path else str(k), depth + 1)
+                           for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            pending.extend((v, f"{path}[{i}]", depth + 1) for i, v in reversed(list(enumerate(value))))
 
 
 def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
     """Validate raw data (as loaded from YAML) into a Scenario, or raise ScenarioError."""
     if not isinstance(data, dict):
         raise ScenarioError(source, "", "a scenario must be a mapping of keys to values")
-    _check_finite(data, "", source)
+    _check_tree(data, source)
     try:
         spec = msgspec.convert(data, ScenarioFile, strict=True)
     except msgspec.ValidationError as exc:
@@ -353,15 +367,26 @@ def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
     return Scenario(spec=spec, vehicle=vehicle, source=source, events=events)
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a YAML scenario file."""
+def read_scenario_data(path: str | Path) -> Any:
+    """A scenario file's raw data: YAML, or JSON when it ends in ``.json`` (what the launcher
+    hands its nodes). Every failure is a ``ScenarioError``; the limits are in ``safe_yaml``."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
+        text = read_text(path)
+        return load_json(text) if path.suffix == ".json" else load_yaml(text)
+    except InputError as exc:
+        raise ScenarioError(str(path), exc.field, exc.reason) from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file."""
+    return parse_scenario(read_scenario_data(path), str(path))
+
+
+def load_scenario_text(text: str, source: str) -> Scenario:
+    """Validate scenario YAML held in memory (e.g. the copy inside a run.mcap)."""
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(str(path), "", f"not valid YAML: {exc}".replace("\n", " ")) from None
-    return parse_scenario(data, str(path))
+        data = load_yaml(text)
+    except InputError as exc:
+        raise ScenarioError(source, exc.field, exc.reason) from None
+    return parse_scenario(data, source)

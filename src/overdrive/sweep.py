@@ -24,7 +24,7 @@ from typing import Any
 
 import yaml
 
-from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario
+from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario, read_scenario_data
 
 JITTERED_KINDS = frozenset({
     "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
@@ -91,8 +91,8 @@ def run_one(job: tuple[dict[str, Any], str, int]) -> dict[str, Any]:
 
 def load_raw(path: Path) -> tuple[dict[str, Any], SweepSpec]:
     """Read and validate the scenario; return its raw data and sweep block."""
-    scenario = parse_scenario(yaml.safe_load(path.read_text(encoding="utf-8")), str(path))
-    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    data = read_scenario_data(path)
+    scenario = parse_scenario(data, str(path))
     return data, scenario.spec.sweep
 
 
