@@ -124,6 +124,7 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
            user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
     from overdrive.launch import Launch, check_launchable
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError
     from overdrive.sim import default_out_dir
 
@@ -133,10 +134,11 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     out = out_dir or default_out_dir(loaded)
     try:
         check_launchable(loaded)
+        make_out_dir(out)
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
                      plot=not no_plot, node_log=True)
-    except (ScenarioError, ValueError) as exc:
+    except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return
     interrupted = threading.Event()

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -22,6 +21,7 @@ from overdrive.messages import Topic
 from overdrive.monitor import Monitor
 from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.recorder import Recorder
+from overdrive.run_files import finite_json
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
 from overdrive.scenario import (
     DRIVING_KINDS,
@@ -167,7 +167,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
     exit_code = 1 if summary["violations"] else 0
     if out_path is not None:
-        (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
         if plot:
             from overdrive.plot import plot_run
             plot_run(out_path / "trace.csv", out_path / "plot.png", summary)

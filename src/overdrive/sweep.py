@@ -14,7 +14,6 @@ conditions legitimately move the figures an expectation pins down.
 from __future__ import annotations
 
 import copy
-import json
 import math
 import os
 import random
@@ -24,6 +23,7 @@ from typing import Any
 
 import yaml
 
+from overdrive.run_files import finite_json, make_out_dir
 from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario, read_scenario_data
 
 JITTERED_KINDS = frozenset({
@@ -104,13 +104,13 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
     job_list = [(sample_scenario(data, i, base, spec), str(path), i) for i in range(runs)]
     for job in job_list:   # fail fast, before any worker starts, on an invalid sample
         parse_scenario(job[0], f"{path} (run {job[2]})")
+    make_out_dir(out_dir)   # before the runs: a folder that cannot be made is a usage error
     jobs = max(1, min(jobs, runs))
     if jobs == 1:
         results = [run_one(job) for job in job_list]
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             results = list(pool.map(run_one, job_list, chunksize=max(1, runs // (jobs * 8))))
-    out_dir.mkdir(parents=True, exist_ok=True)
     violating = [r for r in results if r["invariant_violations"]]
     margins = [r["authorization_margin_m"] for r in results if r["authorization_margin_m"] is not None]
 
@@ -141,7 +141,7 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
                   | {"replay": "overdrive sim " + str(worst_dir / "run-{}.yaml".format(r["run"]))}
                   for r in worst_runs],
     }
-    (out_dir / "sweep.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    (out_dir / "sweep.json").write_text(finite_json(report), encoding="utf-8")
     columns = ("run", "seed", "friction", "grade_percent", "authorization_margin_m", "odometer_m",
                "final_speed_mps", "max_speed_mps", "max_accel_mps2", "max_decel_mps2",
                "max_lateral_accel_mps2", "estops")
