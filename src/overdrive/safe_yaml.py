@@ -70,6 +70,11 @@ def read_text(path: Path, max_bytes: int = MAX_FILE_BYTES) -> str:
         raise InputError("", f"cannot read: {exc.strerror or exc}") from None
     if len(data) > max_bytes:
         raise InputError("", f"file larger than the limit of {max_bytes} bytes")
+    return decode_utf8(data)
+
+
+def decode_utf8(data: bytes) -> str:
+    """Strict UTF-8 (a leading BOM is kept: YAML skips it), or ``InputError`` with the line."""
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
