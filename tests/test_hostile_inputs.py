@@ -97,6 +97,10 @@ RED_TEAM: dict[str, tuple[bytes, tuple[str, ...]]] = {
                               ("duration_s:", "finite")),
     "gear role naming no gear": (_vehicle(park_gear="warp"),                    # was: "vehicle.gears"
                                  ("vehicle.park_gear:", "'warp'")),
+    "key with a line break": (b'name: t\n"a\\nb": 1\n',                    # was: two lines
+                              ("a\\nb: unknown field",)),
+    "key with a terminal escape": (b'name: t\n"\\e[31mred": 1\n',              # was: raw ESC
+                                   ("\\x1b[31mred: unknown field",)),
     # rejected before too, with a multi-line or less precise message: kept for the loader's rules
     "python object tag": (b'name: !!python/object/apply:os.system ["true"]\n',
                           ("name:", "YAML tags")),
@@ -204,6 +208,12 @@ def test_out_that_cannot_be_created_is_a_usage_error(tmp_path: Path, command: st
         assert f"Invalid value for '--out': Directory '{out}' is a file" in result.stderr
     else:
         assert_usage_error(result, f"--out {out}", reason)
+
+
+@pytest.mark.wallclock
+def test_out_with_a_line_break_is_still_one_line(tmp_path: Path) -> None:
+    result = overdrive("sim", str(VALID), "--out", "/dev/null/a\nb", cwd=tmp_path)
+    assert_usage_error(result, "--out /dev/null/a\\nb: cannot create the folder")
 
 
 @pytest.mark.wallclock

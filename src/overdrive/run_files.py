@@ -14,9 +14,14 @@ import os
 from pathlib import Path
 from typing import Any
 
+from overdrive.safe_yaml import one_line
+
 
 class OutDirError(ValueError):
     """The output folder cannot be created or written; ``str()`` is the one-line message."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(one_line(message))
 
 
 def make_out_dir(path: Path, option: str = "--out") -> Path:

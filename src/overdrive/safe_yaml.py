@@ -43,6 +43,14 @@ _Loader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+def one_line(text: str) -> str:
+    """``text`` with line breaks and other control characters escaped (``\\n``, ``\\x1b``): a
+    key or a path from a hostile file can neither split an error line nor drive the terminal."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class InputError(ValueError):
     """A file that cannot be read as data: ``field`` is the path inside it ("" for the file)."""
 

@@ -15,7 +15,15 @@ from typing import Annotated, Any, Literal
 
 import msgspec
 
-from overdrive.safe_yaml import MAX_DEPTH, MAX_NODES, InputError, load_json, load_yaml, read_text
+from overdrive.safe_yaml import (
+    MAX_DEPTH,
+    MAX_NODES,
+    InputError,
+    load_json,
+    load_yaml,
+    one_line,
+    read_text,
+)
 from overdrive.vehicle.presets import VehicleParams, VehicleSpecError, vehicle_from_spec
 
 # Bounds: generous physical limits, chosen to catch typos and unit mistakes, not to restrict use.
@@ -279,7 +287,7 @@ class ScenarioError(ValueError):
 
     def __init__(self, source: str, field: str, reason: str) -> None:
         self.source, self.field, self.reason = source, field, reason
-        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
+        super().__init__(one_line(f"{source}: {field}: {reason}" if field else f"{source}: {reason}"))
 
 
 _AT = re.compile(r"^(?P<msg>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
