@@ -175,6 +175,26 @@ def test_every_command_reading_a_scenario_rejects_it(tmp_path: Path, command: st
     assert not (tmp_path / "out").exists()
 
 
+JSON_SPECS = {   # the launcher hands nodes the scenario as JSON; a user can too
+    "100,000 levels": (b"[" * 100_000 + b"]" * 100_000, (f"nested deeper than {MAX_DEPTH}",)),
+    "duplicate key": (b'{"name": "a", "world": {"friction": 0.8, "friction": 0.2}}',
+                      ("duplicate key 'friction'",)),    # was: the last one won
+    "NaN": (b'{"name": "a", "duration_s": NaN}', ("duration_s:", "finite")),
+    "not UTF-8": (b'{"name": "caf\xe9"}', ("not UTF-8",)),
+}
+
+
+@pytest.mark.wallclock
+@pytest.mark.parametrize("case", sorted(JSON_SPECS))
+def test_node_rejects_a_hostile_json_spec(tmp_path: Path, case: str) -> None:
+    content, needles = JSON_SPECS[case]     # 100,000 levels was: RecursionError traceback
+    path = tmp_path / "spec.json"
+    path.write_bytes(content)
+    result = overdrive("node", "move", "--scenario", str(path), "--connect", "tcp/127.0.0.1:9",
+                       cwd=tmp_path)
+    assert_usage_error(result, f"{path}: ", *needles)
+
+
 OUT_COMMANDS = {
     "sim": ("sim", str(VALID), "--quiet", "--out", "{out}"),
     "sweep": ("sweep", str(VALID), "--runs", "1", "--jobs", "1", "--out", "{out}"),
