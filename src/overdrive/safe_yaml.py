@@ -168,20 +168,17 @@ def load_yaml(text: str) -> Any:
                 continue
             if getattr(event, "tag", None) is not None:
                 raise fail(f"YAML tags ({event.tag}) are not allowed", event)
-            if isinstance(event, yaml.AliasEvent):
-                if event.anchor not in anchors:
-                    raise fail(f"alias *{event.anchor} names no finished anchor "
-                               "(undefined, or used inside itself)", event)
-                value, count = anchors[event.anchor]
-                nodes += count
-                if nodes > MAX_NODES:
-                    raise fail(f"more than {MAX_NODES} values once aliases are expanded", event)
-                add(copy.deepcopy(value), event)
-                continue
-            nodes += 1
+            alias = isinstance(event, yaml.AliasEvent)
+            if alias and event.anchor not in anchors:
+                raise fail(f"alias *{event.anchor} names no finished anchor "
+                           "(undefined, or used inside itself)", event)
+            nodes += anchors[event.anchor][1] if alias else 1
             if nodes > MAX_NODES:
-                raise fail(f"more than {MAX_NODES} values once aliases are expanded", event)
-            if isinstance(event, yaml.ScalarEvent):
+                raise fail(f"more than {MAX_NODES} values (an alias counts as all it stands for)",
+                           event)
+            if alias:
+                add(copy.deepcopy(anchors[event.anchor][0]), event)
+            elif isinstance(event, yaml.ScalarEvent):
                 value = _scalar(loader, event, fail)
                 if event.anchor is not None:
                     anchors[event.anchor] = (value, 1)
