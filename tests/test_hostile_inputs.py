@@ -19,6 +19,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import msgspec
 import pytest
 import yaml
 
@@ -279,6 +280,17 @@ def test_exponent_numbers_are_numbers(tmp_path: Path, text: str, value: float) -
             load_scenario(path)
     else:
         assert load_scenario(path).spec.expect[0].final_speed_below_mps == value
+
+
+def test_a_large_scenario_loads_from_yaml_and_from_the_launchers_json(tmp_path: Path) -> None:
+    """Within the node budget as YAML, so within it as the JSON spec launch hands its nodes
+    (every absent field written as null)."""
+    events = "".join(f"  - {{at_s: {i % 100}, engine: 'on'}}\n" for i in range(15_000))
+    path = _write(tmp_path, f"name: t\nduration_s: 100\nevents:\n{events}".encode())
+    spec = load_scenario(path).spec
+    json_path = tmp_path / "scenario.json"
+    json_path.write_bytes(msgspec.json.encode(msgspec.to_builtins(spec)))
+    assert load_scenario(json_path).spec == spec
 
 
 def test_every_numeric_vehicle_parameter_has_a_plausible_range() -> None:

@@ -22,6 +22,9 @@ import yaml
 
 MAX_FILE_BYTES = 1 << 20
 """1 MiB: the largest shipped scenario is ~3 KB; a 1,000-event scenario is ~100 KB."""
+MAX_JSON_BYTES = 32 << 20
+"""32 MiB: the launcher's JSON copy of a scenario writes ~25 nulls per event (~450 bytes), so
+a YAML file within the limits (<= ~33,000 events) stays below ~15 MB as JSON."""
 MAX_DEPTH = 32
 """Nesting levels of mappings and lists; a scenario needs 6 (events[i].actuator.brake...)."""
 MAX_NODES = 100_000

@@ -17,6 +17,7 @@ import msgspec
 
 from overdrive.safe_yaml import (
     MAX_DEPTH,
+    MAX_JSON_BYTES,
     MAX_NODES,
     InputError,
     load_json,
@@ -313,13 +314,14 @@ def _check_tree(data: Any, source: str) -> None:
 
     A loop over an explicit stack, counting what it visits: data built in Python may share
     sub-lists (what an alias bomb loads to), which a plain recursive walk visits exponentially
-    often and deep data overflows it.
+    often and deep data overflows it. Nulls are not counted: the launcher's JSON copy of a
+    scenario spells out every absent optional field as null (~25 per event).
     """
     pending: list[tuple[Any, str, int]] = [(data, "", 0)]
     visited = 0
     while pending:
         value, path, depth = pending.pop()
-        visited += 1
+        visited += value is not None
         if visited > MAX_NODES:
             raise ScenarioError(source, "", f"more than {MAX_NODES} values")
         if isinstance(value, float) and not math.isfinite(value):
@@ -380,8 +382,9 @@ def read_scenario_data(path: str | Path) -> Any:
     hands its nodes). Every failure is a ``ScenarioError``; the limits are in ``safe_yaml``."""
     path = Path(path)
     try:
-        text = read_text(path)
-        return load_json(text) if path.suffix == ".json" else load_yaml(text)
+        if path.suffix == ".json":
+            return load_json(read_text(path, MAX_JSON_BYTES))
+        return load_yaml(read_text(path))
     except InputError as exc:
         raise ScenarioError(str(path), exc.field, exc.reason) from None
 
