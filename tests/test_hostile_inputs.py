@@ -87,7 +87,8 @@ RED_TEAM: dict[str, tuple[bytes, tuple[str, ...]]] = {
     # inputs tried while attacking this change; "was:" what the code before it did
     "5,000-digit integer": (b"name: t\nseed: " + b"1" * 5000 + b"\n",        # was: traceback
                             ("seed:", "a number of 5000 characters")),
-    "13th month": (b"name: t\nduration_s: 2001-13-45\n", ("duration_s:", "month")),  # was: traceback
+    "13th month": (b"name: t\nduration_s: 2001-13-45\n",                    # was: traceback
+                   ("duration_s:", "month")),
     "recursive anchor": (b"name: t\nevents: &a [*a]\n",                       # was: RecursionError
                          ("events[0]:", "alias *a")),
     "list as preset name": (b"name: t\nvehicle: {preset: [escape-hybrid]}\n",   # was: TypeError
@@ -96,7 +97,7 @@ RED_TEAM: dict[str, tuple[bytes, tuple[str, ...]]] = {
                                  ("vehicle.mass_kg:", "50..60000")),
     "1e400 written plainly": (b"name: t\nduration_s: 1e400\n",                  # was: "got str"
                               ("duration_s:", "finite")),
-    "gear role naming no gear": (_vehicle(park_gear="warp"),                    # was: "vehicle.gears"
+    "gear role naming no gear": (_vehicle(park_gear="warp"),             # was: "vehicle.gears"
                                  ("vehicle.park_gear:", "'warp'")),
     "key with a line break": (b'name: t\n"a\\nb": 1\n',                    # was: two lines
                               ("a\\nb: unknown field",)),

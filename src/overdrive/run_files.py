@@ -31,7 +31,8 @@ def make_out_dir(path: Path, option: str = "--out") -> Path:
     except FileExistsError:
         raise OutDirError(f"{option} {path}: exists and is not a folder") from None
     except OSError as exc:
-        raise OutDirError(f"{option} {path}: cannot create the folder: {exc.strerror or exc}") from None
+        raise OutDirError(f"{option} {path}: cannot create the folder: "
+                          f"{exc.strerror or exc}") from None
     except ValueError as exc:    # an embedded NUL byte
         raise OutDirError(f"{option} {path!r}: not a usable path: {exc}") from None
     if not os.access(path, os.W_OK | os.X_OK):

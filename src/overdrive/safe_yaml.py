@@ -21,14 +21,15 @@ from typing import Any
 import yaml
 
 MAX_FILE_BYTES = 1 << 20
-"""1 MiB: the largest shipped scenario is ~3 KB; a 1,000-event scenario is ~100 KB."""
+"""1 MiB: the largest shipped scenario is ~8 KB; 1,000 events take ~50 KB."""
 MAX_JSON_BYTES = 32 << 20
 """32 MiB: the launcher's JSON copy of a scenario writes ~25 nulls per event (~450 bytes), so
-a YAML file within the limits (<= ~33,000 events) stays below ~15 MB as JSON."""
+a YAML file within the limits (<= ~20,000 events) stays below ~10 MB as JSON."""
 MAX_DEPTH = 32
 """Nesting levels of mappings and lists; a scenario needs 6 (events[i].actuator.brake...)."""
 MAX_NODES = 100_000
-"""Scalars, mappings and lists, aliases counted as the nodes they expand to (~10,000 events)."""
+"""Scalars (keys too), mappings and lists, an alias counted as the nodes it stands for; an
+event such as ``{at_s: 1, engine: "on"}`` is 5, so ~20,000 events fit."""
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 _FLOAT_TAG = "tag:yaml.org,2002:float"

@@ -288,7 +288,8 @@ class ScenarioError(ValueError):
 
     def __init__(self, source: str, field: str, reason: str) -> None:
         self.source, self.field, self.reason = source, field, reason
-        super().__init__(one_line(f"{source}: {field}: {reason}" if field else f"{source}: {reason}"))
+        message = f"{source}: {field}: {reason}" if field else f"{source}: {reason}"
+        super().__init__(one_line(message))
 
 
 _AT = re.compile(r"^(?P<msg>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
@@ -324,15 +325,17 @@ def _check_tree(data: Any, source: str) -> None:
         visited += value is not None
         if visited > MAX_NODES:
             raise ScenarioError(source, "", f"more than {MAX_NODES} values")
+        where = path or "(top level)"
         if isinstance(value, float) and not math.isfinite(value):
-            raise ScenarioError(source, path or "(top level)", f"must be a finite number, got {value}")
+            raise ScenarioError(source, where, f"must be a finite number, got {value}")
         if isinstance(value, (dict, list)) and depth >= MAX_DEPTH:
-            raise ScenarioError(source, path or "(top level)", f"nested deeper than {MAX_DEPTH} levels")
+            raise ScenarioError(source, where, f"nested deeper than {MAX_DEPTH} levels")
         if isinstance(value, dict):
             pending.extend((v, f"{path}.{k}" if path else str(k), depth + 1)
                            for k, v in reversed(value.items()))
         elif isinstance(value, list):
-            pending.extend((v, f"{path}[{i}]", depth + 1) for i, v in reversed(list(enumerate(value))))
+            pending.extend((v, f"{path}[{i}]", depth + 1)
+                           for i, v in reversed(list(enumerate(value))))
 
 
 def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:

@@ -193,7 +193,8 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "mass_kg": (50.0, 60_000.0, "a small robot to a 44 t EU truck (US: 36 t)"),
     "drag_area_m2": (0.0, 15.0, "Cd x frontal area: a car ~0.7 m^2, a truck ~6-10 m^2"),
     "rolling_resistance": (0.0, 0.3, "C_rr: road tyres ~0.01, knobbly tyres ~0.03, sand ~0.3"),
-    "driven_weight_fraction": (0.1, 1.0, "a tractor's drive axle in a 5-axle rig ~0.25; all-wheel drive 1"),
+    "driven_weight_fraction": (0.1, 1.0,
+                               "a tractor's drive axle in a 5-axle rig ~0.25; all-wheel drive 1"),
     "max_power_w": (500.0, 2_000_000.0, "a 0.5 kW robot to the ~1.4 MW of the strongest road cars"),
     "idle_rpm": (300.0, 3_000.0, "large diesels idle at ~500 rpm, small engines at ~1,500"),
     "redline_rpm": (1_000.0, 20_000.0, "truck diesels ~2,500 rpm, motorcycle engines ~15,000"),
@@ -208,7 +209,8 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "steer_rate_rps": (0.05, 5.0, "road-wheel rate: power steering ~1 rad/s"),
     "steer_lag_s": (0.005, 5.0, "first-order lag of the steering actuator"),
     "skidpad_lat_g": (0.1, 1.5, "road cars 0.7-1.0 g; 1.5 g only with downforce"),
-    "stopping_distance_60mph_m": (25.0, 300.0, "60-0 mph: the best cars ~30 m, loaded trucks ~100 m"),
+    "stopping_distance_60mph_m": (25.0, 300.0,
+                                  "60-0 mph: the best cars ~30 m, loaded trucks ~100 m"),
     "max_pitch_rad": (0.01, 0.8, "steepest grade driven: 0.8 rad (~100 %) is beyond most vehicles"),
     "radar_range_m": (1.0, 500.0, "automotive long-range radars reach ~250 m"),
     "radar_half_angle_rad": (0.005, 1.6, "half the beam width: up to +-90 deg"),
@@ -277,7 +279,8 @@ def vehicle_from_spec(spec: str | dict) -> VehicleParams:
     overrides = dict(spec)
     name = overrides.pop("preset", None)
     if not isinstance(name, str) or name not in PRESETS:
-        raise VehicleSpecError("preset", f"unknown vehicle preset {name!r:.40} (known: {', '.join(PRESETS)})")
+        raise VehicleSpecError("preset", f"unknown vehicle preset {name!r:.40} "
+                                         f"(known: {', '.join(PRESETS)})")
     base = PRESETS[name]
     fields = set(base.__struct_fields__) - {"preset", "gears"}
     for key, value in overrides.items():
