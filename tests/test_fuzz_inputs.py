@@ -121,7 +121,7 @@ YAML_TOKENS = st.sampled_from([
     "<<: ", "? ", "!!binary ", "!!python/object:os.system ", "!x ", "---\n", "...\n", "'", '"',
     "#", "|\n  ", ">\n  ", "name", "t", "vehicle", "preset", "escape-hybrid", "mass_kg",
     "events", "at_s", "world", "friction", "1", "-1", "1e400", ".nan", ".inf", "0x1F", "1_0",
-    "2001-13-45", "~", "true", "on", "\ufeff", "\t", "\r\n", "é", "\x00", "9" * 120,
+    "2001-13-45", "~", "=", "true", "on", "\ufeff", "\t", "\r\n", "é", "\x00", "9" * 120,
 ])
 
 

@@ -25,7 +25,7 @@ import yaml
 
 from overdrive.messages import Topic, Truth
 from overdrive.recorder import Recorder
-from overdrive.run_files import finite_json
+from overdrive.run_files import OutDirError, finite_json, make_out_dir
 from overdrive.safe_yaml import MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES
 from overdrive.scenario import ScenarioError, load_scenario
 from overdrive.vehicle.presets import PLAUSIBLE_RANGES, PRESETS, vehicle_from_spec
@@ -328,6 +328,15 @@ def test_vehicle_bounds_are_inclusive_and_sharp(name: str, field: str) -> None:
         with pytest.raises(VehicleSpecError) as info:
             vehicle_from_spec({"preset": name, field: outside})
         assert info.value.field == field and "within" in info.value.reason
+
+
+def test_make_out_dir_creates_parents_and_refuses_unusable_paths(tmp_path: Path) -> None:
+    made = make_out_dir(tmp_path / "a" / "b")
+    assert made.is_dir() and make_out_dir(made) == made     # an existing folder is fine
+    with pytest.raises(OutDirError, match="not a usable path"):
+        make_out_dir(tmp_path / "nul\0byte")
+    with pytest.raises(OutDirError, match=r"^--out .*\\nb: cannot create the folder"):
+        make_out_dir(Path("/dev/null/a\nb"))
 
 
 def test_finite_json_writes_null_for_nan_and_infinity() -> None:
