@@ -233,6 +233,15 @@ def test_out_that_cannot_be_created_is_a_usage_error(tmp_path: Path, command: st
 
 
 @pytest.mark.wallclock
+def test_node_report_that_cannot_be_created_is_a_usage_error(tmp_path: Path) -> None:
+    """Was: a traceback when the node wrote it at exit, then a hang (the bus never closed)."""
+    result = overdrive("node", "move", "--connect", "tcp/127.0.0.1:9", "--duration-s", "0.5",
+                       "--report", "/dev/null/x.json", cwd=tmp_path)
+    assert_usage_error(result, "--report /dev/null/x.json: its folder /dev/null: exists and is "
+                               "not a folder")
+
+
+@pytest.mark.wallclock
 def test_out_with_a_line_break_is_still_one_line(tmp_path: Path) -> None:
     result = overdrive("sim", str(VALID), "--out", "/dev/null/a\nb", cwd=tmp_path)
     assert_usage_error(result, "--out /dev/null/a\\nb: cannot create the folder")

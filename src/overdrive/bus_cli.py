@@ -75,6 +75,7 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
          allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
     from overdrive.launch import UNAVAILABLE, preset_scenario, run_node
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError
 
     if name in UNAVAILABLE:
@@ -82,12 +83,14 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
     if not listen and not connect:
         _usage("give --listen and/or --connect (e.g. --connect tcp/127.0.0.1:7447)")
     try:
+        if report is not None:   # written at exit: a folder that cannot be made fails now
+            make_out_dir(report.parent, f"--report {report}: its folder")
         scenario = _load(scenario_path) if scenario_path else preset_scenario(name, preset, start)
         code = run_node(name, scenario, listen=listen, connect=connect, mode=mode, vehicle=vehicle,
                         wait_clock=wait_clock, report_path=report, base_file=zenoh_config,
                         user=user, password=os.environ.get(PASSWORD_ENV),
                         allow_remote=allow_remote, duration_s=duration_s)
-    except ScenarioError as exc:
+    except (ScenarioError, OutDirError) as exc:
         _usage(str(exc))
         return
     except ValueError as exc:           # bad endpoint
