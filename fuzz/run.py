@@ -20,8 +20,6 @@ import sys
 import time
 from collections.abc import Callable
 
-import yaml
-
 from overdrive.fuzzing import mutate
 
 
@@ -34,14 +32,12 @@ def jaus_target(data: bytes) -> None:
 
 
 def scenario_target(data: bytes) -> None:
-    from overdrive.scenario import ScenarioError, parse_scenario
+    """What ``load_scenario`` does with a file's bytes, without the file."""
+    from overdrive.safe_yaml import InputError, decode_utf8
+    from overdrive.scenario import ScenarioError, load_scenario_text
 
-    try:
-        raw = yaml.safe_load(data.decode("utf-8", errors="replace"))
-    except yaml.YAMLError:
-        return
-    with contextlib.suppress(ScenarioError):
-        parse_scenario(raw, "fuzz.yaml")
+    with contextlib.suppress(InputError, ScenarioError):
+        load_scenario_text(decode_utf8(data), "fuzz.yaml")
 
 
 def wire_target(data: bytes) -> None:

@@ -7,6 +7,7 @@ exit code 2 with a one-line message), never another exception and never a traceb
 from __future__ import annotations
 
 import math
+from datetime import timedelta
 from pathlib import Path
 
 import yaml
@@ -15,7 +16,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from overdrive.cli import main
-from overdrive.scenario import EVENT_KINDS, ScenarioError, parse_scenario
+from overdrive.fuzzing import mutate
+from overdrive.scenario import EVENT_KINDS, ScenarioError, load_scenario, parse_scenario
 
 scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6),
                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=12))
@@ -80,3 +82,71 @@ def test_shipped_scenarios_round_trip_through_yaml() -> None:
         raw = yaml.safe_load(path.read_text())
         assert parse_scenario(raw, str(path)).spec == parse_scenario(
             yaml.safe_load(yaml.safe_dump(raw)), str(path)).spec
+
+
+# ----------------------------------------------------------------- the YAML loader (issue 18)
+
+SHIPPED = sorted((Path(__file__).resolve().parent.parent / "scenarios").rglob("*.yaml"))
+LOAD_BOUND = timedelta(seconds=5)   # issue 18: every hostile input ends within 5 s
+
+
+def _load_file(directory: Path, content: bytes) -> None:
+    """``load_scenario`` on a file with ``content``: a Scenario or a ScenarioError naming it."""
+    path = directory / "fuzz.yaml"
+    path.write_bytes(content)
+    try:
+        load_scenario(path)
+    except ScenarioError as exc:
+        assert str(exc).startswith(f"{path}") and "\n" not in str(exc), str(exc)
+
+
+@settings(max_examples=400, deadline=LOAD_BOUND, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(SHIPPED), st.randoms(use_true_random=False), st.integers(1, 8))
+def test_mutated_scenario_files_load_or_raise_scenario_error(tmp_path_factory, source, rng,
+                                                             rounds) -> None:
+    data = source.read_bytes()
+    for _ in range(rounds):
+        data = mutate(data, rng)
+    _load_file(tmp_path_factory.getbasetemp(), data)
+
+
+@settings(max_examples=300, deadline=LOAD_BOUND, suppress_health_check=[HealthCheck.too_slow])
+@given(st.binary(max_size=512))
+def test_random_bytes_load_or_raise_scenario_error(tmp_path_factory, data) -> None:
+    _load_file(tmp_path_factory.getbasetemp(), data)
+
+
+YAML_TOKENS = st.sampled_from([
+    "[", "]", "{", "}", ", ", ": ", "- ", "\n", "\n  ", "\n    ", "&a ", "&b ", "*a", "*b",
+    "<<: ", "? ", "!!binary ", "!!python/object:os.system ", "!x ", "---\n", "...\n", "'", '"',
+    "#", "|\n  ", ">\n  ", "name", "t", "vehicle", "preset", "escape-hybrid", "mass_kg",
+    "events", "at_s", "world", "friction", "1", "-1", "1e400", ".nan", ".inf", "0x1F", "1_0",
+    "2001-13-45", "~", "=", "true", "on", "\ufeff", "\t", "\r\n", "é", "\x00", "9" * 120,
+])
+
+
+@settings(max_examples=600, deadline=LOAD_BOUND, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(YAML_TOKENS, max_size=60))
+def test_yaml_token_soup_loads_or_raises_scenario_error(tmp_path_factory, tokens) -> None:
+    """Anchors, aliases, tags, merge keys, nesting and odd scalars in random order."""
+    _load_file(tmp_path_factory.getbasetemp(), "".join(tokens).encode("utf-8"))
+
+
+@settings(max_examples=200, deadline=LOAD_BOUND, suppress_health_check=[HealthCheck.too_slow])
+@given(data, st.integers(0, 3))
+def test_random_structures_through_yaml_load_or_raise_scenario_error(tmp_path_factory, raw,
+                                                                     nesting) -> None:
+    """Random trees (as YAML with every float spelled out), nested a few levels deeper."""
+    for _ in range(nesting):
+        raw = {"name": "t", "world": [raw]}
+    _load_file(tmp_path_factory.getbasetemp(), yaml.safe_dump(raw, allow_unicode=True).encode())
+
+
+@settings(max_examples=50, deadline=LOAD_BOUND, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(2, 12), st.integers(2, 12))
+def test_alias_fan_out_is_bounded(tmp_path_factory, levels, fan_out) -> None:
+    """Billion-laughs shapes of any size: the expansion is counted, never walked."""
+    lines = ["a0: &a0 [x]"]
+    for i in range(1, levels):
+        lines.append(f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * fan_out)}]")
+    _load_file(tmp_path_factory.getbasetemp(), ("\n".join(lines) + "\nname: t\n").encode())

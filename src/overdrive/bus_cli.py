@@ -7,7 +7,6 @@ Endpoints are loopback-only unless ``--allow-remote``; see docs/multiprocess.md.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import sys
@@ -33,16 +32,12 @@ def _usage(message: str) -> None:
 
 
 def _load(path: Path) -> Any:
-    from overdrive.scenario import ScenarioError, load_scenario, parse_scenario
+    from overdrive.scenario import ScenarioError, load_scenario
 
     try:
-        if path.suffix == ".json":   # the launcher hands nodes the validated spec as JSON
-            return parse_scenario(json.loads(path.read_text(encoding="utf-8")), str(path))
         return load_scenario(path)
-    except (OSError, ValueError) as exc:
-        if isinstance(exc, ScenarioError):
-            _usage(str(exc))
-        _usage(f"{path}: {exc}")
+    except ScenarioError as exc:
+        _usage(str(exc))
 
 
 def _zenoh_options(fn: Any) -> Any:
@@ -80,6 +75,7 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
          allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
     from overdrive.launch import UNAVAILABLE, preset_scenario, run_node
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError
 
     if name in UNAVAILABLE:
@@ -87,12 +83,14 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
     if not listen and not connect:
         _usage("give --listen and/or --connect (e.g. --connect tcp/127.0.0.1:7447)")
     try:
+        if report is not None:   # written at exit: a folder that cannot be made fails now
+            make_out_dir(report.parent, f"--report {report}: its folder")
         scenario = _load(scenario_path) if scenario_path else preset_scenario(name, preset, start)
         code = run_node(name, scenario, listen=listen, connect=connect, mode=mode, vehicle=vehicle,
                         wait_clock=wait_clock, report_path=report, base_file=zenoh_config,
                         user=user, password=os.environ.get(PASSWORD_ENV),
                         allow_remote=allow_remote, duration_s=duration_s)
-    except ScenarioError as exc:
+    except (ScenarioError, OutDirError) as exc:
         _usage(str(exc))
         return
     except ValueError as exc:           # bad endpoint
@@ -129,6 +127,7 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
            user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
     from overdrive.launch import Launch, check_launchable
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError
     from overdrive.sim import default_out_dir
 
@@ -138,10 +137,11 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     out = out_dir or default_out_dir(loaded)
     try:
         check_launchable(loaded)
+        make_out_dir(out)
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
                      plot=not no_plot, node_log=True)
-    except (ScenarioError, ValueError) as exc:
+    except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return
     interrupted = threading.Event()

@@ -44,6 +44,7 @@ def main() -> None:
 def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, quiet: bool,
         live: bool, live_port: int) -> None:
     """Run SCENARIO against the simulated vehicle and write the run folder."""
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError, load_scenario
     from overdrive.sim import default_out_dir, run_scenario
 
@@ -57,7 +58,7 @@ def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, 
         if seed is not None:
             loaded = msgspec.structs.replace(
                 loaded, spec=msgspec.structs.replace(loaded.spec, seed=seed))
-        out = out_dir or default_out_dir(loaded)
+        out = make_out_dir(out_dir or default_out_dir(loaded))
         show_progress = not quiet and sys.stdout.isatty()
         if show_progress:
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -72,7 +73,7 @@ def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, 
         else:
             result = run_scenario(loaded, out, keep_trace=False, realtime=realtime,
                                   observers=observers)
-    except ScenarioError as exc:
+    except (ScenarioError, OutDirError) as exc:
         fail_usage(str(exc))
         return
     finally:
@@ -99,13 +100,14 @@ def sweep_command(scenario: Path, runs: int, jobs: int | None, out_dir: Path | N
     safety-invariant violation."""
     import time
 
+    from overdrive.run_files import OutDirError
     from overdrive.scenario import ScenarioError
     from overdrive.sweep import default_jobs, sweep
 
     out = out_dir or Path("runs") / f"sweep-{scenario.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
         report = sweep(scenario, runs, jobs or default_jobs(), out, seed)
-    except (ScenarioError, OSError) as exc:
+    except (ScenarioError, OutDirError, OSError) as exc:
         fail_usage(str(exc))
         return
     print_sweep(report, out)
@@ -153,6 +155,7 @@ def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_
     if not simulate:
         fail_usage("move-server runs offline with -s; on a vehicle run `overdrive node move`")
     from overdrive.move_sim import simulation_nodes
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import parse_scenario
     from overdrive.sim import default_out_dir, run_scenario
     from overdrive.vehicle.plant import World
@@ -160,7 +163,11 @@ def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_
     scenario = parse_scenario({"name": f"move-server-sim-{vehicle}", "vehicle": vehicle,
                                "seed": seed, "duration_s": duration_s,
                                "description": "overdrive move-server -s"}, "<move-server -s>")
-    out = out_dir or default_out_dir(scenario)
+    try:
+        out = make_out_dir(out_dir or default_out_dir(scenario))
+    except OutDirError as exc:
+        fail_usage(str(exc))
+        return
     nodes = simulation_nodes(scenario.vehicle, seed, world=World())
     result = run_scenario(scenario, out, keep_trace=False, nodes=nodes)
     if quiet:
@@ -223,6 +230,7 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
 @click.option("--quiet", is_flag=True, help="No summary table.")
 def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool) -> None:
     """Run the control stack against a real or simulated XGV over JAUS, in wall-clock time."""
+    from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError, load_scenario
     from overdrive.sim import default_out_dir
     from overdrive.xgv_link import run_drive
@@ -231,9 +239,9 @@ def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool
     local = _host_port(bind, 0, "--bind")
     try:
         loaded = load_scenario(scenario)
-        out = out_dir or default_out_dir(loaded)
+        out = make_out_dir(out_dir or default_out_dir(loaded))
         result = run_drive(loaded, remote, out, bind=local)
-    except ScenarioError as exc:
+    except (ScenarioError, OutDirError) as exc:
         fail_usage(str(exc))
         return
     except OSError as exc:

@@ -10,7 +10,9 @@ and compares with the committed files):
   ``overdrive.vehicle.modes.safety_mode``);
 - the topic table of ``docs/architecture.md`` (between ``<!-- BEGIN GENERATED`` markers):
   who publishes what at what rate and who subscribes, measured by running reference scenarios
-  on the lock-step runtime with every node tagged.
+  on the lock-step runtime with every node tagged;
+- the vehicle-parameter table of ``docs/scenarios.md``: each parameter's plausible range
+  (``overdrive.vehicle.presets.PLAUSIBLE_RANGES``) and the presets' values.
 """
 
 from __future__ import annotations
@@ -296,6 +298,30 @@ def topics_table() -> str:
     return "\n".join(out) + "\n"
 
 
+VEHICLE_UNITS = (("_kg", "kg"), ("_w", "W"), ("_m2", "m²"), ("_g", "g"))
+"""Suffixes that occur in vehicle parameters, not in messages."""
+
+
+def _number(value: float) -> str:
+    """``60,000`` for whole numbers, four significant digits otherwise."""
+    return f"{value:,.0f}" if float(value).is_integer() else f"{value:.4g}"
+
+
+def vehicle_bounds_table() -> str:
+    """Every vehicle parameter a scenario may override: its range, the presets' values, why."""
+    from overdrive.vehicle.presets import PLAUSIBLE_RANGES, PRESETS
+
+    out = ["| parameter | unit | plausible range | " + " | ".join(PRESETS)
+           + " | where the bounds come from |",
+           "|---|---|---|" + "---|" * len(PRESETS) + "---|"]
+    for name, (low, high, why) in PLAUSIBLE_RANGES.items():
+        values = " | ".join(_number(getattr(p, name)) for p in PRESETS.values())
+        unit = next((u for suffix, u in VEHICLE_UNITS if name.endswith(suffix)), unit_of(name))
+        out.append(f"| `{name}` | {unit or '-'} | {_number(low)} .. {_number(high)} | {values} "
+                   f"| {_cell(why)} |")
+    return "\n".join(out) + "\n"
+
+
 def fill(text: str, name: str, content: str) -> str:
     """``text`` with the block between the ``name`` markers replaced by ``content``."""
     begin, end = BEGIN.format(name=name), END.format(name=name)
@@ -313,6 +339,10 @@ def generated(docs_dir: Path) -> dict[Path, str]:
     arch = docs_dir / "architecture.md"
     if arch.exists():
         files[arch] = fill(arch.read_text(encoding="utf-8"), "topics", topics_table())
+    scenarios = docs_dir / "scenarios.md"
+    if scenarios.exists():
+        files[scenarios] = fill(scenarios.read_text(encoding="utf-8"), "vehicle-bounds",
+                                vehicle_bounds_table())
     return files
 
 

@@ -41,6 +41,7 @@ import msgspec
 
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
+from overdrive.run_files import finite_json
 from overdrive.runtime import DEFAULT_PERIOD_S, Node
 from overdrive.runtime_wall import WallRuntime
 from overdrive.scenario import Scenario, ScenarioError, parse_scenario
@@ -537,8 +538,7 @@ class Launch:
         self.close()
         exit_code = 1 if summary["violations"] else 0
         if out_path is not None:
-            (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n",
-                                                   encoding="utf-8")
+            (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
             if self.plot:
                 from overdrive.plot import plot_run
 

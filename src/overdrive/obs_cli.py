@@ -62,9 +62,15 @@ def plot(run: Path, out_png: Path | None) -> None:
     acceleration against the ellipse limits, pedals, speed states, safety modes and gears,
     and the path with obstacles and authorizations."""
     from overdrive.plot import plot_source
+    from overdrive.run_files import OutDirError, make_out_dir
 
     try:
+        if out_png is not None:
+            make_out_dir(out_png.parent, f"--out {out_png}: its folder")
         written = plot_source(run, out_png)
+    except OutDirError as exc:
+        _fail(str(exc))
+        return
     except FileNotFoundError as exc:
         _fail(str(exc))
         return

@@ -25,7 +25,7 @@ TRACE_COLUMNS = (
 
 
 def _fmt(value: float | None) -> str:
-    if value is None or value != value:
+    if value is None or not math.isfinite(value):
         return ""
     return f"{value:.4f}"
 

@@ -191,13 +191,11 @@ def infer_publisher(topic: str, msg: dict[str, Any], servers: Sequence[str]) -> 
 # --------------------------------------------------------------------------- replay
 
 def _scenario(info: RunInfo, path: Path) -> Any:
-    import yaml
-
-    from overdrive.scenario import parse_scenario
+    from overdrive.scenario import load_scenario_text
 
     if info.scenario_yaml is None:
         raise ReplayError(f"{path}: no scenario.yaml attachment; cannot rebuild the stack")
-    return parse_scenario(yaml.safe_load(info.scenario_yaml), f"{path}:scenario.yaml")
+    return load_scenario_text(info.scenario_yaml, f"{path}:scenario.yaml")
 
 
 def build_servers(scenario: Any) -> list[Any]:

@@ -14,8 +14,17 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import msgspec
-import yaml
 
+from overdrive.safe_yaml import (
+    MAX_DEPTH,
+    MAX_JSON_BYTES,
+    MAX_NODES,
+    InputError,
+    load_json,
+    load_yaml,
+    one_line,
+    read_text,
+)
 from overdrive.vehicle.presets import VehicleParams, VehicleSpecError, vehicle_from_spec
 
 # Bounds: generous physical limits, chosen to catch typos and unit mistakes, not to restrict use.
@@ -295,7 +304,8 @@ class ScenarioError(ValueError):
 
     def __init__(self, source: str, field: str, reason: str) -> None:
         self.source, self.field, self.reason = source, field, reason
-        super().__init__(f"{source}: {field}: {reason}" if field else f"{source}: {reason}")
+        message = f"{source}: {field}: {reason}" if field else f"{source}: {reason}"
+        super().__init__(one_line(message))
 
 
 _AT = re.compile(r"^(?P<msg>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
@@ -315,23 +325,40 @@ def _split_validation_error(exc: msgspec.ValidationError) -> tuple[str, str]:
     return path or "(top level)", msg[0].lower() + msg[1:] if msg else "invalid"
 
 
-def _check_finite(value: Any, path: str, source: str) -> None:
-    """Reject NaN/inf anywhere in raw data (bounds catch most, this catches the rest)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        raise ScenarioError(source, path or "(top level)", f"must be a finite number, got {value}")
-    if isinstance(value, dict):
-        for k, v in value.items():
-            _check_finite(v, f"{path}.{k}" if path else str(k), source)
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            _check_finite(v, f"{path}[{i}]", source)
+def _check_tree(data: Any, source: str) -> None:
+    """Reject NaN/inf anywhere in raw data (bounds catch most, this catches the rest), nesting
+    deeper than ``MAX_DEPTH`` and more than ``MAX_NODES`` values.
+
+    A loop over an explicit stack, counting what it visits: data built in Python may share
+    sub-lists (what an alias bomb loads to), which a plain recursive walk visits exponentially
+    often and deep data overflows it. Nulls are not counted: the launcher's JSON copy of a
+    scenario spells out every absent optional field as null (~25 per event).
+    """
+    pending: list[tuple[Any, str, int]] = [(data, "", 0)]
+    visited = 0
+    while pending:
+        value, path, depth = pending.pop()
+        visited += value is not None
+        if visited > MAX_NODES:
+            raise ScenarioError(source, "", f"more than {MAX_NODES} values")
+        where = path or "(top level)"
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ScenarioError(source, where, f"must be a finite number, got {value}")
+        if isinstance(value, (dict, list)) and depth >= MAX_DEPTH:
+            raise ScenarioError(source, where, f"nested deeper than {MAX_DEPTH} levels")
+        if isinstance(value, dict):
+            pending.extend((v, f"{path}.{k}" if path else str(k), depth + 1)
+                           for k, v in reversed(value.items()))
+        elif isinstance(value, list):
+            pending.extend((v, f"{path}[{i}]", depth + 1)
+                           for i, v in reversed(list(enumerate(value))))
 
 
 def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
     """Validate raw data (as loaded from YAML) into a Scenario, or raise ScenarioError."""
     if not isinstance(data, dict):
         raise ScenarioError(source, "", "a scenario must be a mapping of keys to values")
-    _check_finite(data, "", source)
+    _check_tree(data, source)
     try:
         spec = msgspec.convert(data, ScenarioFile, strict=True)
     except msgspec.ValidationError as exc:
@@ -369,15 +396,27 @@ def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
     return Scenario(spec=spec, vehicle=vehicle, source=source, events=events)
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a YAML scenario file."""
+def read_scenario_data(path: str | Path) -> Any:
+    """A scenario file's raw data: YAML, or JSON when it ends in ``.json`` (what the launcher
+    hands its nodes). Every failure is a ``ScenarioError``; the limits are in ``safe_yaml``."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
+        if path.suffix == ".json":
+            return load_json(read_text(path, MAX_JSON_BYTES))
+        return load_yaml(read_text(path))
+    except InputError as exc:
+        raise ScenarioError(str(path), exc.field, exc.reason) from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file."""
+    return parse_scenario(read_scenario_data(path), str(path))
+
+
+def load_scenario_text(text: str, source: str) -> Scenario:
+    """Validate scenario YAML held in memory (e.g. the copy inside a run.mcap)."""
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ScenarioError(str(path), "", f"not valid YAML: {exc}".replace("\n", " ")) from None
-    return parse_scenario(data, str(path))
+        data = load_yaml(text)
+    except InputError as exc:
+        raise ScenarioError(source, exc.field, exc.reason) from None
+    return parse_scenario(data, source)

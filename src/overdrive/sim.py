@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -21,6 +20,7 @@ from overdrive.expect import check
 from overdrive.messages import Topic
 from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.recorder import Recorder
+from overdrive.run_files import finite_json
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
 from overdrive.safety.monitor import Monitor
 from overdrive.scenario import (
@@ -170,7 +170,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     add_judgement(summary, monitor)
     exit_code = 1 if summary["violations"] else 0
     if out_path is not None:
-        (out_path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
         if plot:
             from overdrive.plot import plot_run
             plot_run(out_path / "trace.csv", out_path / "plot.png", summary)

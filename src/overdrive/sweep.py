@@ -14,7 +14,6 @@ conditions legitimately move the figures an expectation pins down.
 from __future__ import annotations
 
 import copy
-import json
 import math
 import os
 import random
@@ -24,7 +23,8 @@ from typing import Any
 
 import yaml
 
-from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario
+from overdrive.run_files import finite_json, make_out_dir
+from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario, read_scenario_data
 
 JITTERED_KINDS = frozenset({
     "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
@@ -135,8 +135,8 @@ def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
 
 def load_raw(path: Path) -> tuple[dict[str, Any], SweepSpec]:
     """Read and validate the scenario; return its raw data and sweep block."""
-    scenario = parse_scenario(yaml.safe_load(path.read_text(encoding="utf-8")), str(path))
-    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    data = read_scenario_data(path)
+    scenario = parse_scenario(data, str(path))
     return data, scenario.spec.sweep
 
 
@@ -149,13 +149,13 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
     job_list = [(d, str(path), i, fault) for d, fault, i in job_list]
     for job in job_list:   # fail fast, before any worker starts, on an invalid sample
         parse_scenario(job[0], f"{path} (run {job[2]})")
+    make_out_dir(out_dir)   # before the runs: a folder that cannot be made is a usage error
     jobs = max(1, min(jobs, runs))
     if jobs == 1:
         results = [run_one(job) for job in job_list]
     else:
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             results = list(pool.map(run_one, job_list, chunksize=max(1, runs // (jobs * 8))))
-    out_dir.mkdir(parents=True, exist_ok=True)
     violating = [r for r in results if r["invariant_violations"]]
     margins = [r["authorization_margin_m"] for r in results if r["authorization_margin_m"] is not None]
 
@@ -188,8 +188,9 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
                   | {"replay": "overdrive sim " + str(worst_dir / "run-{}.yaml".format(r["run"]))}
                   for r in worst_runs],
     }
-    (out_dir / "sweep.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-    columns = ("run", "seed", "fault", "friction", "grade_percent", "authorization_margin_m", "odometer_m",
+    (out_dir / "sweep.json").write_text(finite_json(report), encoding="utf-8")
+    columns = ("run", "seed", "fault", "friction", "grade_percent", "authorization_margin_m",
+               "odometer_m",
                "final_speed_mps", "max_speed_mps", "max_accel_mps2", "max_decel_mps2",
                "max_lateral_accel_mps2", "estops")
     lines = [",".join(columns)]

@@ -182,10 +182,43 @@ RANGER_6X6 = VehicleParams(
 PRESETS: dict[str, VehicleParams] = {p.preset: p for p in (ESCAPE_HYBRID, RANGER_6X6)}
 
 
-ZERO_ALLOWED = frozenset({"rolling_resistance", "drag_area_m2", "start_failures",
-                          "start_failure_prob", "gps_noise_m", "speed_noise_mps",
-                          "accel_noise_mps2"})
-"""Parameters that may be zero; every other number must be strictly positive."""
+PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
+    # name: (lowest, highest, where the bounds come from); both ends allowed. A bound is where
+    # a value stops describing a wheeled vehicle this stack could drive (a typo, a unit
+    # mistake), not a limit on ordinary vehicles.
+    "length_m": (1.0, 30.0, "a 1 m robot base to a 25.25 m EU modular road train"),
+    "width_m": (0.5, 3.0, "road vehicles are at most 2.55 m (EU) / 2.6 m (US) wide"),
+    "wheelbase_m": (0.5, 12.0, "a golf cart has ~1.6 m; a city bus up to ~7.5 m, a coach ~8 m"),
+    "rear_overhang_m": (0.0, 5.0, "zero with the axle at the back; buses reach ~3.5 m"),
+    "mass_kg": (50.0, 60_000.0, "a small robot to a 44 t EU truck (US: 36 t)"),
+    "drag_area_m2": (0.0, 15.0, "Cd x frontal area: a car ~0.7 m^2, a truck ~6-10 m^2"),
+    "rolling_resistance": (0.0, 0.3, "C_rr: road tyres ~0.01, knobbly tyres ~0.03, sand ~0.3"),
+    "driven_weight_fraction": (0.1, 1.0,
+                               "a tractor's drive axle in a 5-axle rig ~0.25; all-wheel drive 1"),
+    "max_power_w": (500.0, 2_000_000.0, "a 0.5 kW robot to the ~1.4 MW of the strongest road cars"),
+    "idle_rpm": (300.0, 3_000.0, "large diesels idle at ~500 rpm, small engines at ~1,500"),
+    "redline_rpm": (1_000.0, 20_000.0, "truck diesels ~2,500 rpm, motorcycle engines ~15,000"),
+    "shift_time_s": (0.01, 10.0, "a dual-clutch shift ~0.1 s, a manual truck box a few seconds"),
+    "crank_time_s": (0.1, 30.0, "an engine cranks for ~1 s; starters are rated for ~30 s"),
+    "start_failures": (0, 100, "failed crank attempts to simulate: a handful is a test"),
+    "start_failure_prob": (0.0, 1.0, "a probability"),
+    "throttle_lag_s": (0.005, 5.0, "electronic throttles ~0.05 s, cable actuators ~0.3 s"),
+    "brake_lag_s": (0.005, 5.0, "hydraulic brakes ~0.1 s, air brakes ~0.5 s"),
+    "max_brake_decel_mps2": (1.0, 15.0, "road tyres give ~1.0-1.2 g; 15 m/s^2 is ~1.5 g"),
+    "max_steer_rad": (0.05, 1.05, "road-wheel angle at full lock: cars ~0.6 rad, 60 deg at most"),
+    "steer_rate_rps": (0.05, 5.0, "road-wheel rate: power steering ~1 rad/s"),
+    "steer_lag_s": (0.005, 5.0, "first-order lag of the steering actuator"),
+    "skidpad_lat_g": (0.1, 1.5, "road cars 0.7-1.0 g; 1.5 g only with downforce"),
+    "stopping_distance_60mph_m": (25.0, 300.0,
+                                  "60-0 mph: the best cars ~30 m, loaded trucks ~100 m"),
+    "max_pitch_rad": (0.01, 0.8, "steepest grade driven: 0.8 rad (~100 %) is beyond most vehicles"),
+    "radar_range_m": (1.0, 500.0, "automotive long-range radars reach ~250 m"),
+    "radar_half_angle_rad": (0.005, 1.6, "half the beam width: up to +-90 deg"),
+    "gps_noise_m": (0.0, 50.0, "1 sigma: RTK ~0.02 m, standalone GPS ~5 m"),
+    "speed_noise_mps": (0.0, 5.0, "1 sigma of the wheel-speed reading"),
+    "accel_noise_mps2": (0.0, 5.0, "1 sigma of the accelerometer reading"),
+}
+"""Physically plausible range of every number a scenario may override (docs/scenarios.md)."""
 
 
 class VehicleSpecError(ValueError):
@@ -194,39 +227,72 @@ class VehicleSpecError(ValueError):
         super().__init__(f"{field}: {reason}")
 
 
+def _check_override(key: str, value: Any, base: VehicleParams) -> None:
+    """One override has the base value's type (YAML numbers: no quoted numbers) and, for a
+    number, lies within ``PLAUSIBLE_RANGES``."""
+    expected = type(getattr(base, key))
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if type(value) is not expected:
+            raise VehicleSpecError(key, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
+        return
+    if expected is bool or expected is str or (expected is int and not isinstance(value, int)):
+        raise VehicleSpecError(key, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
+    low, high, why = PLAUSIBLE_RANGES[key]
+    if not low <= value <= high:    # NaN fails this too; a huge int compares exactly
+        raise VehicleSpecError(key, f"must be within {low:g}..{high:g} ({why}), got {_show(value)}")
+
+
+_TYPE_WORDS = {float: "number", int: "whole number", bool: "boolean (true/false)", str: "string"}
+
+
+def _show(value: Any) -> str:
+    """A value as the file spelled it, cut short: ``null``, ``true``, ``the string '-1700'``."""
+    if value is None or isinstance(value, bool):
+        return {None: "null", True: "true", False: "false"}[value]
+    text = repr(value)
+    text = text if len(text) <= 24 else f"{text[:20]}... ({len(text)} characters)"
+    return f"the string {text}" if isinstance(value, str) else text
+
+
+def _check_consistent(params: VehicleParams, overridden: set[str]) -> None:
+    """Cross-field checks: the geometry adds up and the engine's speed range is not empty."""
+    if params.wheelbase_m + params.rear_overhang_m > params.length_m:
+        field = next((f for f in ("wheelbase_m", "rear_overhang_m") if f in overridden), "length_m")
+        raise VehicleSpecError(field, f"wheelbase_m {params.wheelbase_m:g} + rear_overhang_m "
+                                      f"{params.rear_overhang_m:g} is longer than length_m "
+                                      f"{params.length_m:g} (the axles must fit in the vehicle)")
+    if params.idle_rpm >= params.redline_rpm:
+        field = "idle_rpm" if "idle_rpm" in overridden else "redline_rpm"
+        raise VehicleSpecError(field, f"idle_rpm {params.idle_rpm:g} must be below redline_rpm "
+                                      f"{params.redline_rpm:g}")
+
+
 def vehicle_from_spec(spec: str | dict) -> VehicleParams:
     """Build parameters from a preset name or ``{preset: NAME, field: value, ...}``.
 
-    Raises ``VehicleSpecError`` naming the field on an unknown preset or field, a wrong type,
-    or a value out of range.
+    Raises ``VehicleSpecError`` naming the field on an unknown preset or field, a wrong type
+    (a quoted number is a string), a value outside ``PLAUSIBLE_RANGES`` or an inconsistent
+    combination (axles longer than the vehicle).
     """
     if isinstance(spec, str):
         spec = {"preset": spec}
     overrides = dict(spec)
     name = overrides.pop("preset", None)
-    if name not in PRESETS:
-        raise VehicleSpecError("preset", f"unknown vehicle preset {name!r} (known: {', '.join(PRESETS)})")
+    if not isinstance(name, str) or name not in PRESETS:
+        raise VehicleSpecError("preset", f"unknown vehicle preset {name!r:.40} "
+                                         f"(known: {', '.join(PRESETS)})")
     base = PRESETS[name]
     fields = set(base.__struct_fields__) - {"preset", "gears"}
     for key, value in overrides.items():
         if key not in fields:
             raise VehicleSpecError(str(key), "not a vehicle parameter")
-        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            continue
-        if isinstance(value, (int, float)):
-            if not math.isfinite(value):
-                raise VehicleSpecError(key, f"must be a finite number, got {value}")
-            if value < 0 or (value == 0 and key not in ZERO_ALLOWED):
-                raise VehicleSpecError(key, f"must be {'>= 0' if key in ZERO_ALLOWED else '> 0'}, got {value}")
-            if key == "start_failure_prob" and value > 1:
-                raise VehicleSpecError(key, f"is a probability, must be <= 1, got {value}")
+        _check_override(key, value, base)
     merged = msgspec.to_builtins(base)
     merged.update(overrides)
-    try:
-        params = msgspec.convert(merged, VehicleParams, strict=False)
-    except msgspec.ValidationError as exc:
-        raise VehicleSpecError("", str(exc).replace("`$.", "`")) from None
-    for gear_name in (params.park_gear, params.drive_gear, params.low_gear, params.reverse_gear):
-        if gear_name not in params.gear_names:
-            raise VehicleSpecError("gears", f"{gear_name!r} is not one of {params.gear_names}")
+    params = msgspec.convert(merged, VehicleParams)
+    for role in ("park_gear", "drive_gear", "low_gear", "reverse_gear"):
+        if getattr(params, role) not in params.gear_names:
+            raise VehicleSpecError(role, f"{getattr(params, role)!r:.40} is not one of the "
+                                         f"preset's gears {params.gear_names}")
+    _check_consistent(params, set(overrides))
     return params
