@@ -75,6 +75,11 @@ class Empty(Spec, frozen=True):
     pass
 
 
+RESERVED_SOURCE = "move"
+"""The move server's own source name: its authorizations and limits are the stack's output (the
+safety judge tells them apart by that name), so a scenario's other sources may not use it."""
+
+
 class AdvanceSpec(Spec, frozen=True):
     source: Name
     distance_m: Distance
@@ -371,6 +376,11 @@ def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
             raise ScenarioError(source, f"events[{i}]",
                                 f"{what}; each event needs at_s and exactly one of: "
                                 + ", ".join(EVENT_KINDS))
+        other = event.advance or event.max_speed
+        if other is not None and other.source == RESERVED_SOURCE:
+            raise ScenarioError(source, f"events[{i}].{event.kind}.source",
+                                f"{RESERVED_SOURCE!r} is reserved for the move server's own "
+                                "authorizations and limits; name the source otherwise")
         if event.at_s > spec.duration_s:
             raise ScenarioError(source, f"events[{i}].at_s",
                                 f"{event.at_s} s is after the end of the run (duration_s {spec.duration_s})")

@@ -11,6 +11,7 @@ from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
     MoveCommand,
+    MoveReply,
     Notice,
     PedalCommand,
     SafetyDevices,
@@ -72,8 +73,13 @@ class Clock:
         for x in xs:
             self.at(x, speed_mps)
 
-    def issue(self, topic: str, msg: object) -> None:
+    def issue(self, topic: str, msg: object, accepted: bool = True) -> None:
+        """Issue ``msg``; a MOVE / REVERSE also gets the move server's reply (accepted or not)."""
         self.monitor.observe(topic, msg)
+        if topic == Topic.MOVE_COMMAND and msg.kind != "stop":
+            self.monitor.observe(Topic.MOVE_REPLY, MoveReply(
+                command_id=msg.command_id, kind=msg.kind, accepted=accepted,
+                code="ok" if accepted else "busy"))
 
 
 @pytest.fixture
@@ -138,8 +144,11 @@ def test_stop_is_judged_against_the_shortest_physical_stop(preset: str, offset: 
     clock.at(20.0, 10.0, pitch_rad=pitch_rad)
     clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
     decel = min(params.max_brake_decel_mps2, 0.8 * G_MPS2 * math.cos(pitch_rad)) + G_MPS2 * math.sin(pitch_rad)
-    shortest = 10.0 * (DT + params.brake_lag_s) + 100.0 / (2.0 * decel)
-    assert shortest_stop_m(10.0, params, 0.8, pitch_rad, DT) == pytest.approx(shortest)
+    # holding 10 m/s uphill the tyres push (g sin(pitch)): that drive decays with the throttle
+    carried = max(G_MPS2 * math.sin(pitch_rad), 0.0) * params.throttle_lag_s
+    shortest = 10.0 * (DT + params.brake_lag_s) + 100.0 / (2.0 * decel) + carried * 10.0 / decel
+    assert shortest_stop_m(10.0, params, 0.8, pitch_rad, DT,
+                           drive_accel_mps2=G_MPS2 * math.sin(pitch_rad)) == pytest.approx(shortest)
     clock.at(20.0 + shortest + offset, 0.0, pitch_rad=pitch_rad)
     assert bool(rules(monitor)) == (offset > 0)
 
@@ -176,7 +185,7 @@ def test_other_sources_are_judged_from_issue_time_and_the_move_servers_echo_is_i
     clock.path([10.0, 15.0], speed_mps=0.5)
     assert rules(monitor) == {}, "the move server's own re-publication is stack output"
     clock.path([15.2], speed_mps=0.5)
-    assert rules(monitor)["authorization[lidar]"]["amount"] == pytest.approx(0.2)
+    assert rules(monitor)["authorization[advance lidar]"]["amount"] == pytest.approx(0.2)
 
 
 def test_invalid_commands_are_not_held_against_the_vehicle(monitor: Monitor) -> None:
@@ -193,7 +202,7 @@ def test_the_path_is_integrated_from_x_y_along_the_heading() -> None:
                                        accel_mps2=0.0, lat_accel_mps2=0.0, curvature_1pm=0.0,
                                        pitch_rad=0.0, roll_rad=0.0, odometer_m=0.0, slip=False,
                                        contact=False))
-    monitor.observe(Topic.MOVE_COMMAND, move(5.0))
+    Clock(monitor).issue(Topic.MOVE_COMMAND, move(5.0))
     for i in range(1, 8):      # north along y, odometer frozen at 0: the judge must not care
         monitor.now_s = i * DT
         monitor.observe(Topic.TRUTH, Truth(x_m=0.0, y_m=float(i), heading_rad=math.pi / 2,
@@ -378,7 +387,12 @@ def test_watchdog_deadline_from_the_last_delivered_spss(monitor: Monitor, estop_
     found = rules(monitor)
     assert ("watchdog" in found) == (not ok)
     if not ok:
-        assert found["watchdog"]["t_s"] == pytest.approx(0.22) and found["watchdog"]["unit"] == "s"
+        watchdog = found["watchdog"]
+        assert watchdog["unit"] == "s"
+        if estop_after_s is None:       # never came: the amount is how long it was missing
+            assert watchdog["amount"] == pytest.approx(0.39 - 0.21) and watchdog["t_s"] == 0.39
+        else:                           # came late: by how much
+            assert watchdog["amount"] == pytest.approx(0.01) and watchdog["t_s"] == 0.22
 
 
 # --------------------------------------------------------------------------- finite

@@ -13,22 +13,28 @@ The monitor is a bus tap, not part of the stack. It judges only from
 
 Rules (docs/reliability.md, docs/safety-case.md):
 
-1. **authorization**: each MOVE / REVERSE / advance fixes its end at the true position when it
-   was issued; a replacement fixes a new end; STOP means "stop now". A command shorter than
-   the shortest physical stop from that moment (one control period plus brake lag, then the
-   brake or tyre limit with gravity along the slope) is an ``impossible_command`` note and is
-   judged against that shortest stop. The largest overrun of the run is reported.
-2. **direction**: no travel of more than 0.10 m against the commanded direction (rolling back
-   under a MOVE, forward under a REVERSE, either way before the first command).
+1. **authorization**: each MOVE / REVERSE the move server accepted, and each other source's
+   advance, fixes its end at the true position when it was *issued*; a replacement fixes a
+   new end; a STOP binds at once (it cannot be refused) and means "stop now". A command
+   shorter than the shortest physical stop from that moment (``shortest_stop_m``) is an
+   ``impossible_command`` note and is judged against that shortest stop, but a source's
+   impossible replacements never move its end further than the end it already had. The
+   largest overrun of the run is reported.
+2. **direction**: no travel of more than 0.10 m against the commanded direction: rolling back
+   under a MOVE (or an SPSS in a forward gear), forward under a REVERSE, either way before the
+   first command.
 3. **speed**: true speed never above the lowest live limit (the command's maxspeed, other
    sources' limits until they lapse, the engaged gear's top speed) by more than 0.3 m/s for
    longer than 0.5 s. A lowered limit is met along a ramp at 2.0 m/s^2 from the speed when it
    was lowered.
-4. **unintended_motion**: once a SafeStop pause, a manual override or an e-stop disable has
-   ended, the vehicle moves no further than its shortest stop from the speed it had then
-   (+0.10 m) until a command issued after that moment.
+4. **unintended_motion**: once an interruption has ended (any safety mode but drive-by-wire by
+   the seed-000 table: SafeStop pause or stop, e-stop button, manual overrides, door, internal
+   error; or the human taking speed control in a partial mode), the vehicle moves no further
+   than its shortest stop from the speed it had then (+0.10 m) until a command issued after
+   that moment.
 5. **watchdog**: on SPSS as delivered to the speed server, an emergency stop (throttle 0,
-   brake >= 99 % from the speed server) within 200 ms plus one control period of the last one.
+   brake >= 99 % from the speed server) within 200 ms plus one control period of the last one,
+   held until SPSS are delivered again; the amount is how late (or how long missing).
 6. **finite**: any NaN or infinity in ground truth or in a command is a violation.
 7. **throttle_while_braking**: no pedal command has throttle and brake both above zero.
 8. **control**: every actuator command from a source without control is rejected.
@@ -37,8 +43,9 @@ Rules (docs/reliability.md, docs/safety-case.md):
 10. **estop_precedence**: in e-stop disable the vehicle brakes >= 95 % within 0.5 s.
 11. **contact**: the vehicle never touches an obstacle.
 
-While a human drives (manual override, emergency manual override) rules 1-3 are suspended: the
-stack does not hold the wheel. Every violation says which rule, when and by how much.
+While a human drives (manual override, emergency manual override, partial manual speed) rules
+1-3 are suspended and earlier authorizations are void: the stack does not hold the wheel.
+Every violation says which rule, when and by how much.
 """
 
 from __future__ import annotations
@@ -48,7 +55,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from overdrive.messages import Topic
-from overdrive.vehicle.plant import DRY_MU
+from overdrive.vehicle.modes import safety_mode
+from overdrive.vehicle.plant import AIR_DENSITY_KGPM3, DRY_MU
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
 from overdrive.vehicle.sim_node import WORLD_TOPIC
 
@@ -65,13 +73,18 @@ MAX_SPEED_TTL_S = 0.5         # docs/driving-module.md: a limit not refreshed fo
 MOTION_TOLERANCE_M = 0.10     # unintended motion: same as the direction tolerance
 ELLIPSE_TOLERANCE = 0.15      # plant tolerance: actuator lags and tyre-model transients
 ESTOP_DISABLE_BRAKE_S = 0.5   # brake actuator reaches full effort within ~5 time constants
-MIN_DECEL_MPS2 = 0.1          # floor of the physical decel (a slope steeper than the tyres can hold)
+MIN_DECEL_MPS2 = 0.1          # floor of the physical decel: on a slope steeper than the tyres
+                              # hold, the "shortest stop" is long but finite (no division by 0)
+ESTOP_DISABLE_BRAKE_PCT = 95.0  # "full brake" in e-stop disable, less the actuator's settling
 EPS_S = 1e-6
+EPS_M = 1e-9                  # float slack on distances integrated from x/y
 MOVING_MPS = 0.05             # a stop is recorded when the speed falls from above this ...
 STOPPED_MPS = 0.001           # ... to below this
-PLANNER = "planner"           # the source name of MOVE / REVERSE / STOP in reports
+PLANNER_KEY = "authorization[planner]"   # MOVE / REVERSE / STOP; other sources: [advance NAME]
 MOVE_SERVER_SOURCE = "move"   # advance / max-speed re-published by the move server: stack output
-MANUAL = frozenset({"manual-override", "emergency-manual-override"})
+                              # (a reserved source name: scenario files may not use it)
+MANUAL = frozenset({"manual-override", "emergency-manual-override", "manual-speed"})
+PENDING_MAX = 64              # planner commands awaiting the move server's reply, at most
 
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
     Topic.MOVE_COMMAND: ("distance_m", "maxspeed_mps", "curvature_1pm"),
@@ -114,36 +127,40 @@ class End:
 
 
 def interruption(devices: Any) -> str | None:
-    """The interruption the safety devices impose, by the seed-000 precedence; None when none."""
-    if devices.safestop == "stop" or devices.estop_button:
-        return "estop-disable"
-    if devices.emergency_manual_override:
-        return "emergency-manual-override"
-    if devices.manual_override:
-        return "manual-override"
-    if devices.safestop == "pause" or devices.safestop_link == "none":
-        return "estop-pause"
-    return None
+    """The interruption the safety devices impose (the seed-000 safety mode, or the human
+    taking speed control in a partial mode); None in drive-by-wire."""
+    mode = safety_mode(devices)
+    if mode != "drive-by-wire":
+        return mode
+    return "manual-speed" if devices.partial_mode == "manual-speed" else None
 
 
 def physical_decel_mps2(params: VehicleParams, friction: float, pitch_rad: float,
-                        reverse: bool) -> float:
-    """Hardest possible braking: brakes or tyres, whichever gives first, with gravity along the slope."""
+                        reverse: bool, lat_accel_mps2: float = 0.0) -> float:
+    """Hardest possible braking: brakes or tyres, whichever gives first, with gravity along the
+    slope. In a curve the tyres give only what the lateral acceleration leaves (friction circle)."""
     pitch = -pitch_rad if reverse else pitch_rad
-    tyre = min(params.max_brake_decel_mps2, friction * G_MPS2 * math.cos(pitch))
+    grip = friction * G_MPS2 * math.cos(pitch)
+    tyre = min(params.max_brake_decel_mps2, math.sqrt(max(grip * grip - lat_accel_mps2 ** 2, 0.0)))
     return max(tyre + G_MPS2 * math.sin(pitch), MIN_DECEL_MPS2)
 
 
 def shortest_stop_m(speed_mps: float, params: VehicleParams, friction: float, pitch_rad: float,
-                    period_s: float, reverse: bool = False) -> float:
+                    period_s: float, reverse: bool = False, *, drive_accel_mps2: float = 0.0,
+                    lat_accel_mps2: float = 0.0) -> float:
     """Distance no vehicle can beat from ``speed_mps`` (in the direction of travel judged).
 
-    One control period at speed (the command's latency), the brake actuator's lag (a first-order
-    lag costs its time constant at speed), then the physical deceleration.
+    One control period at speed (the command's latency); the brake actuator's first-order lag
+    (it costs its time constant at speed: an upper bound by about ``decel * lag^2 / 2``); the
+    throttle's lag when the tyres were driving (``drive_accel_mps2`` > 0 decays with the
+    throttle's time constant, and the speed it still adds is kept until the stop); then the
+    physical deceleration. Not modelled: gravity's pull during the latency (under 1 cm).
     """
     v = max(speed_mps, 0.0)
-    decel = physical_decel_mps2(params, friction, pitch_rad, reverse)
-    return v * (period_s + params.brake_lag_s) + v * v / (2.0 * decel)
+    decel = physical_decel_mps2(params, friction, pitch_rad, reverse, lat_accel_mps2)
+    carried_mps = max(drive_accel_mps2, 0.0) * params.throttle_lag_s
+    return (v * (period_s + params.brake_lag_s) + v * v / (2.0 * decel)
+            + carried_mps * v / decel)
 
 
 class Monitor:
@@ -152,9 +169,9 @@ class Monitor:
                  steer_sources: frozenset[str] = frozenset({"driving", "scenario"}),
                  *, spss_is_command: bool = False, position_noise_m: float = 0.0) -> None:
         """``spss_is_command``: the scenario itself is the speed server's client (set_speed runs),
-        so an SPSS it issues is a command (it ends a hold) rather than the stack's output.
-        ``position_noise_m``: where "truth" is a measured pose (``overdrive drive`` against an
-        XGV), its error bound, added to every distance tolerance."""
+        so an SPSS it issues is a command (its gear gives the direction) rather than the stack's
+        output. ``position_noise_m``: where "truth" is a measured pose (``overdrive drive``
+        against an XGV), its error bound, added to every distance tolerance."""
         self.params = params
         self.position_noise_m = position_noise_m
         self.period_s = period_s
@@ -165,17 +182,26 @@ class Monitor:
         self.now_s = 0.0
         self.records: dict[str, Violation] = {}
         self.notes: list[dict[str, Any]] = []
+        self._gear_direction = {g.name: g.direction for g in params.gears}
+        self._gear_top = {g.name: g.max_speed_mps for g in params.gears if g.direction}
         # ground truth
         self.progress_m = 0.0           # signed travel along the heading, integrated from x/y
         self._last_xyh: tuple[float, float, float] | None = None
+        self._last_truth_s: float | None = None
         self.speed_mps = 0.0
         self.pitch_rad = 0.0
+        self.accel_mps2 = 0.0
+        self.lat_accel_mps2 = 0.0
         self.gear_cap_mps = math.inf
-        # authorization
+        # authorization: key -> end; planner commands wait for the move server's reply
         self.ends: dict[str, End] = {}
+        self._pending: dict[int, tuple[Any, float, float, float]] = {}
+        self._noted: set[str] = set()   # keys with an impossible command noted, until a possible one
         # direction: +1 forward, -1 reverse, 0 held (no command yet), None not judged
         self.direction: int | None = 0
-        self.water_m = 0.0              # furthest progress in the commanded direction
+        self.furthest_m = 0.0           # furthest progress in the commanded direction (the anchor
+                                        # of a hold)
+        self._direction_slack_m = 0.0   # a direction change at speed: the stop it still needs
         self.planner_seen = False
         # speed
         self.command_limit_mps = math.inf
@@ -185,11 +211,12 @@ class Monitor:
         self._excess_since_s: float | None = None
         # interruptions
         self.interrupt: str | None = None
+        self._interrupt_since_s = 0.0
         self.after_interrupt: tuple[float, float, float] | None = None  # (anchor, allowed, ended at)
         # watchdog (delivered SPSS)
         self.last_spss_s: float | None = None
-        self.estop_at_s: float | None = None
-        self.estop_active = False
+        self.estop_active = False       # the speed server's latest pedals are the emergency stop
+        self.estop_since_s = 0.0        # ... since then
         # control, e-stop precedence, stop margins
         self.rejected_expected = 0
         self.rejected_seen = 0
@@ -197,13 +224,12 @@ class Monitor:
         self.stop_margins_m: list[float] = []
         self.moving = False
         self._handlers = {Topic.TRUTH: self._truth, Topic.ADVANCE: self._advance,
-                          Topic.MOVE_COMMAND: self._move_command, Topic.MAX_SPEED: self._max_speed,
+                          Topic.MOVE_COMMAND: self._move_command, Topic.MOVE_REPLY: self._move_reply,
+                          Topic.MAX_SPEED: self._max_speed,
                           Topic.PEDALS: self._pedals, Topic.STEER: self._steer,
                           Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._issued_spss,
                           Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._vehicle_status,
                           Topic.SAFETY: self._safety, WORLD_TOPIC: self._world}
-        self._ax_full_mps2 = max(params.max_decel_mps2, params.max_brake_decel_mps2)
-        self._ay_full_mps2 = params.skidpad_lat_g * G_MPS2
 
     # ------------------------------------------------------------------ bookkeeping
 
@@ -219,8 +245,11 @@ class Monitor:
             self.records[key] = Violation(rule, key, self.now_s, amount, unit, message)
 
     def _shortest_stop(self, speed_mps: float, reverse: bool) -> float:
+        drive = self.accel_mps2 + G_MPS2 * math.sin(self.pitch_rad)   # tyre force, gravity removed
         return shortest_stop_m(speed_mps, self.params, self.friction, self.pitch_rad,
-                               self.period_s, reverse)
+                               self.period_s, reverse,
+                               drive_accel_mps2=-drive if reverse else drive,
+                               lat_accel_mps2=self.lat_accel_mps2)
 
     def _finite(self, topic: str, msg: Any, fields: tuple[str, ...]) -> bool:
         bad = [f for f in fields if not math.isfinite(getattr(msg, f))]
@@ -247,55 +276,89 @@ class Monitor:
         """Every message as it reached its subscribers (after channel faults)."""
         if topic == Topic.SET_SPEED:
             self.last_spss_s = self.now_s
-            self.estop_at_s = None
 
     # ------------------------------------------------------------------ commands as issued
 
-    def _new_command(self, direction: int | None) -> None:
-        """A command issued now: it ends a hold and any post-interruption stand-still."""
+    def _new_command(self, direction: int | None, slack_m: float = 0.0) -> None:
+        """A command binds now: it ends a hold and any post-interruption stand-still."""
         self.after_interrupt = None
         if direction is not None and direction != self.direction:
-            self.water_m = self.progress_m
+            self.furthest_m = self.progress_m
+            self._direction_slack_m = slack_m
         self.direction = direction
 
-    def _set_end(self, source: str, distance_m: float, reverse: bool, label: str,
-                 note: bool = True) -> None:
-        """Fix an end ``distance_m`` ahead of the true position, or the shortest stop if longer
-        (with an ``impossible_command`` note unless ``note`` is False: a STOP asks for it)."""
-        speed = -self.speed_mps if reverse else self.speed_mps
-        shortest = self._shortest_stop(speed, reverse)
-        length = max(distance_m, shortest)
-        if distance_m < shortest and note:
-            self.notes.append({"t_s": round(self.now_s, 3), "kind": "impossible_command",
-                               "source": source, "command": label,
-                               "distance_m": round(distance_m, 4),
-                               "shortest_stop_m": round(shortest, 4),
-                               "speed_mps": round(self.speed_mps, 4)})
-        end = self.progress_m - length if reverse else self.progress_m + length
-        self.ends[source] = End(end, reverse, self.now_s, label)
+    def _set_end(self, key: str, distance_m: float, reverse: bool, label: str, at: tuple[float, float, float],
+                 stop: bool = False) -> None:
+        """Fix the end of ``key``'s authorization ``distance_m`` from ``at`` = (progress, speed,
+        time) when it was issued, or its shortest stop when that is longer."""
+        progress, speed, issued_s = at
+        shortest = self._shortest_stop(-speed if reverse else speed, reverse)
+        sign = -1.0 if reverse else 1.0
+        end = progress + sign * max(distance_m, shortest)
+        old = self.ends.get(key)
+        if distance_m < shortest:
+            if old is not None and old.reverse == reverse:
+                # an impossible replacement never moves the end further than it already was
+                end = progress + sign * distance_m
+                end = (max(end, min(old.end_m, progress + shortest)) if not reverse
+                       else min(end, max(old.end_m, progress - shortest)))
+            if not stop and key not in self._noted:
+                self._noted.add(key)
+                self.notes.append({"t_s": round(issued_s, 3), "kind": "impossible_command",
+                                   "key": key, "command": label,
+                                   "distance_m": round(distance_m, 4),
+                                   "shortest_stop_m": round(shortest, 4),
+                                   "speed_mps": round(speed, 4)})
+        else:
+            self._noted.discard(key)
+        self.ends[key] = End(end, reverse, issued_s, label)
+
+    def _here(self) -> tuple[float, float, float]:
+        return (self.progress_m, self.speed_mps, self.now_s)
 
     def _move_command(self, msg: Any) -> None:
         self.planner_seen = True
         if msg.kind == "stop":
             moving_back = self.speed_mps < -MOVING_MPS or (
                 self.direction == -1 and self.speed_mps <= MOVING_MPS)
-            self._set_end(PLANNER, 0.0, moving_back, f"STOP #{msg.command_id}", note=False)
+            self._set_end(PLANNER_KEY, 0.0, moving_back, f"STOP #{msg.command_id}", self._here(),
+                          stop=True)
             self.command_limit_mps = math.inf
+            if self.direction is None:          # hold against rolling back from here on
+                self._new_command(-1 if moving_back else (1 if self.speed_mps > MOVING_MPS else 0))
             return
         if not (msg.distance_m >= 0.0 and msg.maxspeed_mps >= 0.0):
             return   # invalid: the move server must reject it; nothing to hold the vehicle to
+        if len(self._pending) >= PENDING_MAX:
+            self._pending.pop(next(iter(self._pending)))
+        self._pending[msg.command_id] = (msg, *self._here())
+
+    def _move_reply(self, reply: Any) -> None:
+        """A MOVE / REVERSE binds once the move server accepts it, from where it was issued."""
+        pending = self._pending.pop(reply.command_id, None)
+        if pending is None or not reply.accepted or self._manual():
+            return
+        msg, progress, speed, issued_s = pending
         reverse = msg.kind == "reverse"
-        self._set_end(PLANNER, msg.distance_m, reverse,
-                      f"{msg.kind.upper()} #{msg.command_id} of {msg.distance_m:g} m")
+        self._set_end(PLANNER_KEY, msg.distance_m, reverse,
+                      f"{msg.kind.upper()} #{msg.command_id} of {msg.distance_m:g} m",
+                      (progress, speed, issued_s))
         self.command_limit_mps = msg.maxspeed_mps
-        self._new_command(-1 if reverse else 1)
+        direction = -1 if reverse else 1
+        slack = 0.0
+        if direction != self.direction and abs(self.speed_mps) > MOVING_MPS:
+            slack = self._shortest_stop(abs(self.speed_mps), self.speed_mps < 0.0)
+        self._new_command(direction, slack)
 
     def _advance(self, msg: Any) -> None:
         if msg.source == MOVE_SERVER_SOURCE or not msg.distance_m >= 0.0:
             return
-        self._set_end(msg.source, msg.distance_m, msg.reverse,
-                      f"advance of {msg.distance_m:g} m from {msg.source}")
-        self._new_command(None if self.planner_seen else (-1 if msg.reverse else 1))
+        key = f"authorization[advance {msg.source}{' reverse' if msg.reverse else ''}]"
+        self._set_end(key, msg.distance_m, msg.reverse,
+                      f"advance of {msg.distance_m:g} m from {msg.source}", self._here())
+        if not self.planner_seen and not msg.reverse:
+            # no planner: the other sources command the driving module, forward by default
+            self._new_command(1)
 
     def _max_speed(self, msg: Any) -> None:
         if msg.source != MOVE_SERVER_SOURCE and msg.speed_mps >= 0.0:
@@ -303,7 +366,8 @@ class Monitor:
 
     def _issued_spss(self, msg: Any) -> None:
         if self.spss_is_command:
-            self._new_command(None)
+            direction = self._gear_direction.get(msg.gear, 0)
+            self._new_command(direction or None)
 
     def _pedals(self, msg: Any) -> None:
         if msg.throttle_pct > 0.0 and msg.brake_pct > 0.0:
@@ -316,9 +380,10 @@ class Monitor:
         if msg.source == "scenario":
             self._new_command(None)     # open loop: the scenario drives the pedals itself
         if msg.source == "speed":
-            self.estop_active = msg.throttle_pct == 0.0 and msg.brake_pct >= ESTOP_BRAKE_PCT
-            if self.estop_active and self.estop_at_s is None:
-                self.estop_at_s = self.now_s
+            active = msg.throttle_pct == 0.0 and msg.brake_pct >= ESTOP_BRAKE_PCT
+            if active and not self.estop_active:
+                self.estop_since_s = self.now_s
+            self.estop_active = active
 
     def _steer(self, msg: Any) -> None:
         if msg.source not in self.steer_sources:
@@ -337,26 +402,29 @@ class Monitor:
 
     def _safety(self, devices: Any) -> None:
         now = interruption(devices)
-        if self.interrupt is not None and now is None:
+        if self.interrupt is not None and now is None and self.now_s > self._interrupt_since_s + EPS_S:
             speed = abs(self.speed_mps)
             allowed = (self._shortest_stop(speed, self.speed_mps < 0.0) + MOTION_TOLERANCE_M
                        + self.position_noise_m)
             self.after_interrupt = (self.progress_m, allowed, self.now_s)
         if now in MANUAL and not self._manual():
             self.ends.clear()               # the human drives: earlier authorizations are void
+            self._pending.clear()
             self.direction = None
             self.command_limit_mps = math.inf
+        if now is not None and self.interrupt is None:
+            self._interrupt_since_s = self.now_s
         self.interrupt = now
 
     def _vehicle_status(self, status: Any) -> None:
-        gear = next((g for g in self.params.gears if g.name == status.gear), None)
-        self.gear_cap_mps = gear.max_speed_mps if gear is not None and gear.direction else math.inf
+        self.gear_cap_mps = self._gear_top.get(status.gear, math.inf)
         if status.safety_mode == "estop-disable":
             if self.estop_disable_since is None:
                 self.estop_disable_since = self.now_s
             elif (self.now_s - self.estop_disable_since > ESTOP_DISABLE_BRAKE_S
-                  and status.brake_pct < 95.0):
-                self._violate("estop_precedence", "estop_precedence", 95.0 - status.brake_pct, "%",
+                  and status.brake_pct < ESTOP_DISABLE_BRAKE_PCT):
+                self._violate("estop_precedence", "estop_precedence",
+                              ESTOP_DISABLE_BRAKE_PCT - status.brake_pct, "%",
                               f"e-stop disable but brake only {status.brake_pct:.0f} %")
         else:
             self.estop_disable_since = None
@@ -372,13 +440,17 @@ class Monitor:
             mid = h0 + 0.5 * math.remainder(h - h0, math.tau)
             self.progress_m += (x - x0) * math.cos(mid) + (y - y0) * math.sin(mid)
         self._last_xyh = (x, y, h)
+        dt_s = self.period_s if self._last_truth_s is None else self.now_s - self._last_truth_s
+        self._last_truth_s = self.now_s
         self.speed_mps = truth.speed_mps
         self.pitch_rad = truth.pitch_rad
+        self.accel_mps2 = truth.accel_mps2
+        self.lat_accel_mps2 = truth.lat_accel_mps2
         self._record_stop(truth.speed_mps)
         if not self._manual():
             self._authorization()
             self._direction()
-            self._speed()
+            self._speed(dt_s)
         self._unintended_motion()
         if truth.contact:
             self._violate("contact", "contact", abs(truth.speed_mps), "m/s",
@@ -396,10 +468,11 @@ class Monitor:
 
     def _authorization(self) -> None:
         p = self.progress_m
-        for source, end in self.ends.items():
+        tolerance = AUTHORIZATION_TOLERANCE_M + self.position_noise_m + EPS_M
+        for key, end in self.ends.items():
             overrun = (end.end_m - p) if end.reverse else (p - end.end_m)
-            if overrun > AUTHORIZATION_TOLERANCE_M + self.position_noise_m + 1e-9:
-                self._violate("authorization", f"authorization[{source}]", overrun, "m",
+            if overrun > tolerance:
+                self._violate("authorization", key, overrun, "m",
                               f"passed the end of {end.label} (issued at t={end.issued_s:.2f} s) "
                               f"by {overrun:.3f} m", worst=True)
 
@@ -408,29 +481,34 @@ class Monitor:
         if direction is None:
             return
         if direction == 0:
-            travel = abs(p - self.water_m)
+            travel = abs(p - self.furthest_m)
             what = "moved {:.3f} m with no command"
         elif direction > 0:
-            self.water_m = max(self.water_m, p)
-            travel = self.water_m - p
+            self.furthest_m = max(self.furthest_m, p)
+            travel = self.furthest_m - p
             what = "rolled back {:.3f} m under a forward command"
         else:
-            self.water_m = min(self.water_m, p)
-            travel = p - self.water_m
+            self.furthest_m = min(self.furthest_m, p)
+            travel = p - self.furthest_m
             what = "moved forward {:.3f} m under a REVERSE"
-        if travel > DIRECTION_TOLERANCE_M + self.position_noise_m:
+        excess = travel - self._direction_slack_m
+        if excess > DIRECTION_TOLERANCE_M + self.position_noise_m:
             self._violate("direction", "direction", travel, "m", what.format(travel), worst=True)
 
-    def _speed(self) -> None:
-        now, dt = self.now_s, self.period_s
+    def _speed(self, dt_s: float) -> None:
+        now = self.now_s
         limit = min(self.command_limit_mps, self.gear_cap_mps)
         for value, heard_s in self.source_limits.values():
             if now - heard_s <= MAX_SPEED_TTL_S + EPS_S:
                 limit = min(limit, value)
         speed = abs(self.speed_mps)
-        # a limit lowered below the speed is met along a ramp from the speed it was lowered at
+        # a limit lowered below the speed is met along a ramp from the speed it was lowered at,
+        # never steeper than the road allows
+        decel = min(LIMIT_RAMP_DECEL_MPS2,
+                    physical_decel_mps2(self.params, self.friction, self.pitch_rad,
+                                        self.speed_mps < 0.0, self.lat_accel_mps2))
         ramp_from = min(self._ramp_mps, self._last_speed_mps)
-        self._ramp_mps = max(limit, ramp_from - LIMIT_RAMP_DECEL_MPS2 * dt)
+        self._ramp_mps = max(limit, ramp_from - decel * dt_s)
         self._last_speed_mps = speed
         excess = speed - self._ramp_mps
         if excess <= SPEED_TOLERANCE_MPS:
@@ -457,10 +535,16 @@ class Monitor:
     def _ellipse(self, truth: Any) -> None:
         if self.estop_active or abs(truth.speed_mps) < 0.05:
             return
-        scale = min(self.friction / DRY_MU, 1.0)
-        ax_max = self._ax_full_mps2 * scale
-        ay_max = self._ay_full_mps2 * scale
-        ax = truth.accel_mps2 + G_MPS2 * math.sin(truth.pitch_rad)   # tyre force, gravity removed
+        p = self.params
+        # longitudinal: the brakes, or the tyres' grip when that gives first; lateral: the
+        # vehicle's skid-pad figure, measured on dry pavement, scaled down on slippery roads
+        ax_max = min(max(p.max_decel_mps2, p.max_brake_decel_mps2), self.friction * G_MPS2)
+        ay_max = p.skidpad_lat_g * G_MPS2 * min(self.friction / DRY_MU, 1.0)
+        v = truth.speed_mps
+        resist = (p.rolling_resistance * G_MPS2 * math.cos(truth.pitch_rad)
+                  + 0.5 * AIR_DENSITY_KGPM3 * p.drag_area_m2 * v * v / p.mass_kg)
+        # tyre force: gravity and rolling and air resistance removed
+        ax = truth.accel_mps2 + G_MPS2 * math.sin(truth.pitch_rad) + math.copysign(resist, v)
         ay = truth.lat_accel_mps2
         usage = math.hypot(ax / ax_max, ay / ay_max)
         if usage > 1.0 + ELLIPSE_TOLERANCE:
@@ -471,15 +555,21 @@ class Monitor:
     # ------------------------------------------------------------------ per tick
 
     def tick(self, now_s: float) -> None:
-        """Time-based checks, after every node has stepped at ``now_s``."""
-        if self.last_spss_s is not None:
-            deadline_s = self.last_spss_s + WATCHDOG_S + self.period_s
-            late = self.estop_at_s is None or self.estop_at_s > deadline_s + EPS_S
-            if now_s > deadline_s + EPS_S and late:
-                gap = now_s - self.last_spss_s
-                self._violate("watchdog", "watchdog", gap - WATCHDOG_S, "s",
-                              f"no SPSS delivered for {gap * 1000:.0f} ms and no emergency stop by "
-                              f"{(WATCHDOG_S + self.period_s) * 1000:.0f} ms")
+        """Time-based checks, after every node has stepped at ``now_s``: from the deadline on,
+        the speed server's pedals must be the emergency stop until an SPSS is delivered."""
+        if self.last_spss_s is None:
+            return
+        deadline_s = self.last_spss_s + WATCHDOG_S + self.period_s
+        if now_s <= deadline_s + EPS_S:
+            return
+        # late: missing now (for as long as it is missing), or begun after the deadline
+        late_s = (now_s if not self.estop_active else self.estop_since_s) - deadline_s
+        if late_s > EPS_S:
+            gap = now_s - self.last_spss_s
+            self._violate("watchdog", "watchdog", late_s, "s",
+                          f"no SPSS delivered for {gap * 1000:.0f} ms and no emergency stop held "
+                          f"{late_s * 1000:.0f} ms past the {(WATCHDOG_S + self.period_s) * 1000:.0f} "
+                          f"ms deadline", worst=True)
 
     def authorization_margin_m(self) -> float | None:
         """Distance still authorized ahead of the vehicle by the most restrictive source, now."""
