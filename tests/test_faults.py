@@ -129,3 +129,33 @@ def test_duplicate_and_reorder_on_a_run_are_counted() -> None:
                         {"at_s": 4.0, "reorder": {"channel": "imu", "for_s": 1.0}},
                         {"at_s": 5.5, "delay": {"channel": "wheel_speed", "for_s": 1.0, "delay_s": 0.2}}])
     assert result.summary["channel_faults"] == {"duplicate": 100, "reorder": 100, "delay": 100}
+
+
+def test_delivered_taps_see_what_the_channel_delivers() -> None:
+    """The judge's view of SPSS as delivered: drops, delays (released by ``pump``), duplicates
+    and reordering as the subscribers get them; other topics are not tapped."""
+    from overdrive.bus.local import LocalBus
+
+    bus = LocalBus()
+    faults = ChannelFaults()
+    faults.add("set_speed", "drop", 1.0, 1.0)
+    faults.add("set_speed", "delay", 3.0, 1.0, 0.5)
+    faults.add("set_speed", "duplicate", 5.0, 1.0)
+    faults.add("set_speed", "reorder", 7.0, 1.0)
+    bus.channel = faults
+    inbox = bus.subscribe([Topic.SET_SPEED])
+    issued: list = []
+    delivered: list = []
+    bus.tap(lambda topic, msg: issued.append(msg))
+    bus.tap_delivered(lambda topic, msg: delivered.append((faults.now_s, msg)), [Topic.SET_SPEED])
+    for now_s, msg in ((0.5, "a"), (1.5, "dropped"), (3.2, "late"), (5.5, "twice"),
+                       (7.2, "first"), (7.4, "second")):
+        faults.now_s = now_s
+        bus.publish(Topic.SET_SPEED, msg)
+        bus.publish(Topic.PEDALS, "not tapped")
+    faults.now_s = 3.7
+    bus.pump()
+    assert issued.count("dropped") == 1
+    assert [m for _, m in delivered] == ["a", "twice", "twice", "second", "first", "late"]
+    assert [m for _, m in inbox] == [m for _, m in delivered]
+    assert delivered[-1][0] == 3.7, "a delayed message is delivered when it is released"

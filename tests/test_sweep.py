@@ -90,13 +90,19 @@ def test_every_swept_fault_kind_is_a_valid_scenario_event() -> None:
         parse_scenario({**data, "events": [*data["events"], event]}, kind)
 
 
-def test_fault_sweep_draws_faults_and_reports_per_fault_and_rule(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def fault_sweep(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path]:
+    out = tmp_path_factory.mktemp("fault-sweep")
+    return sweep(FAULTS_SWEEP, 30, 2, out), out
+
+
+def test_fault_sweep_draws_faults_and_reports_per_fault_and_rule(fault_sweep) -> None:
     from overdrive.sweep import sample_run
 
     data = yaml.safe_load(FAULTS_SWEEP.read_text())
     spec = SweepSpec(**{**data["sweep"], "faults": None})
     assert sample_run(data, 0, 1, spec)[1] is None, "no faults block: no drawn fault"
-    report = sweep(FAULTS_SWEEP, 30, 2, tmp_path)
+    report, tmp_path = fault_sweep
     by_fault = report["runs_by_fault"]
     assert sum(row["runs"] for row in by_fault.values()) == 30
     assert len(by_fault) >= 10, "the draw covers most fault kinds"
@@ -110,6 +116,6 @@ def test_fault_sweep_draws_faults_and_reports_per_fault_and_rule(tmp_path: Path)
 
 @pytest.mark.xfail(strict=True, reason="issues 16 and 17: a frozen sensor and a delayed MOVE "
                                        "still break the judge's rules in this sample")
-def test_fault_sweep_has_no_avoidable_violation(tmp_path: Path) -> None:
-    report = sweep(FAULTS_SWEEP, 30, 2, tmp_path)
+def test_fault_sweep_has_no_avoidable_violation(fault_sweep) -> None:
+    report, _ = fault_sweep
     assert report["violations"] == 0, report["runs_by_fault"]

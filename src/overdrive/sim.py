@@ -22,7 +22,7 @@ from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.recorder import Recorder
 from overdrive.run_files import finite_json
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
-from overdrive.safety.monitor import Monitor
+from overdrive.safety.monitor import DELIVERED_TOPICS, Monitor
 from overdrive.scenario import (
     DRIVING_KINDS,
     MOVE_KINDS,
@@ -145,7 +145,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
             bus.tap(tap.observe)
         monitor = make_monitor(scenario, period_s, position_noise_m)
         bus.tap(monitor.observe)
-        bus.tap_delivered(monitor.observe_delivered)
+        bus.tap_delivered(monitor.observe_delivered, DELIVERED_TOPICS)
         runtime = LockstepRuntime(mcap.wrap(nodes) if mcap else nodes, bus, period_s)
         duration_s = scenario.spec.duration_s
         wall_start = time.monotonic()

@@ -522,3 +522,144 @@ def test_estop_button_stops_the_vehicle_with_full_brake() -> None:
     result = run_scenario(parse_scenario(data), None)
     assert result.summary["violations"] == []
     assert float(result.trace[-1]["brake_pct"]) > 99.0 and result.trace[-1]["engine"] == "off"
+
+
+# --------------------------------------------------------------------------- edges (review)
+
+@pytest.mark.parametrize("offset", JUST)
+def test_a_measured_pose_widens_every_distance_bound_by_its_error(offset: float) -> None:
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT, position_noise_m=0.12)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0))
+    clock.path([5.0, 10.12 + offset], speed_mps=0.5)
+    assert ("authorization[planner]" in rules(monitor)) == (offset > 0)
+    back = Monitor(ESCAPE_HYBRID, 0.8, DT, position_noise_m=0.12)
+    clock = Clock(back)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0))
+    clock.path([5.0, 5.0 - 0.22 - offset], speed_mps=-0.1)
+    assert ("direction" in rules(back)) == (offset > 0)
+
+
+def test_progress_through_the_heading_wrap_is_continuous(monitor: Monitor) -> None:
+    """A circle driven through +-pi: the path integrates to its arc length."""
+    radius, steps = 10.0, 400
+    arc = 2.0 * math.pi * radius * 0.8
+    for i in range(steps + 1):
+        theta = math.pi - 0.8 * math.pi + 1.6 * math.pi * i / steps   # crosses pi at i = 200
+        heading = math.remainder(theta + math.pi / 2, math.tau)
+        monitor.now_s = i * DT
+        monitor.observe(Topic.TRUTH, Truth(
+            x_m=radius * math.cos(theta), y_m=radius * math.sin(theta), heading_rad=heading,
+            speed_mps=1.0, accel_mps2=0.0, lat_accel_mps2=0.0, curvature_1pm=0.0, pitch_rad=0.0,
+            roll_rad=0.0, odometer_m=0.0, slip=False, contact=False))
+    assert monitor.progress_m == pytest.approx(arc, rel=1e-4)
+
+
+def test_stop_while_reversing_is_judged_backwards(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(50.0, kind="reverse"))
+    clock.at(-5.0, -3.0)
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
+    shortest = shortest_stop_m(3.0, ESCAPE_HYBRID, 0.8, 0.0, DT, reverse=True)
+    clock.at(-5.0 - shortest + 0.01, 0.0)
+    assert rules(monitor) == {}
+    clock.at(-5.0 - shortest - 0.05, 0.0)
+    assert rules(monitor)["authorization[planner]"]["amount"] == pytest.approx(0.05, abs=1e-6)
+
+
+def test_an_interruption_released_at_speed_allows_the_stop(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0))
+    clock.issue(Topic.SAFETY, SafetyDevices(safestop="pause"))
+    clock.at(10.0, 4.0)
+    clock.issue(Topic.SAFETY, SafetyDevices())
+    allowed = shortest_stop_m(4.0, ESCAPE_HYBRID, 0.8, 0.0, DT) + 0.10
+    clock.at(10.0 + allowed - 0.01, 0.0)
+    assert rules(monitor) == {}
+    clock.at(10.0 + allowed + 0.05, 0.0)
+    assert rules(monitor)["unintended_motion"]["amount"] == pytest.approx(0.05, abs=1e-6)
+
+
+def test_overlapping_interruptions_end_with_the_last(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0))
+    clock.issue(Topic.SAFETY, SafetyDevices(safestop="pause"))
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.SAFETY, SafetyDevices(safestop="pause", manual_override=True))
+    clock.path([3.0, 6.0], speed_mps=1.0)                       # the driver moves it
+    clock.issue(Topic.SAFETY, SafetyDevices(manual_override=True))
+    clock.path([8.0], speed_mps=1.0)
+    assert rules(monitor) == {} and monitor.after_interrupt is None
+    clock.issue(Topic.SAFETY, SafetyDevices())
+    clock.path([8.0, 8.5], speed_mps=0.0)
+    assert "unintended_motion" in rules(monitor)
+
+
+def test_an_interruption_shorter_than_a_period_is_none(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0))
+    clock.issue(Topic.SAFETY, SafetyDevices(safestop="pause"))
+    clock.issue(Topic.SAFETY, SafetyDevices())                  # same instant: never happened
+    clock.path([5.0, 10.0], speed_mps=5.0)
+    assert rules(monitor) == {}
+
+
+def test_a_refused_move_does_not_bind(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(50.0, maxspeed_mps=8.0))
+    clock.issue(Topic.MOVE_COMMAND, move(5.0, maxspeed_mps=1.0, cid=2), accepted=False)
+    clock.path([10.0, 20.0], speed_mps=6.0)
+    assert rules(monitor) == {}
+    clock.issue(Topic.MOVE_COMMAND, move(5.0, maxspeed_mps=1.0, cid=3))
+    clock.path([26.0], speed_mps=1.0)
+    assert rules(monitor)["authorization[planner]"]["amount"] == pytest.approx(1.0)
+
+
+def test_a_stop_after_a_manual_override_holds_against_rollback(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.SAFETY, SafetyDevices(manual_override=True))
+    clock.issue(Topic.SAFETY, SafetyDevices())
+    clock.at(0.0, 0.0)
+    assert monitor.direction is None
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=1))
+    assert monitor.direction == 0
+    clock.path([-0.05, -0.2], speed_mps=-0.1)
+    assert "direction" in rules(monitor)
+
+
+@pytest.mark.parametrize("speed", [3.0, -3.0])
+def test_a_stop_with_no_judged_direction_takes_the_direction_of_travel(speed: float) -> None:
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT, spss_is_command=True)
+    monitor.observe(Topic.SET_SPEED, SetSpeed(speed_mps=0, accel_mps2=1, gear="neutral", state="run"))
+    clock = Clock(monitor)
+    clock.at(0.0, speed)
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=1))
+    assert monitor.direction == (1 if speed > 0 else -1)
+
+
+def test_unanswered_commands_are_bounded_and_invalid_ones_ignored(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    for cid in range(1, 200):
+        monitor.observe(Topic.MOVE_COMMAND, move(10.0, cid=cid))
+    assert len(monitor._pending) == 64
+    monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=500, distance_m=-1.0,
+                                                    maxspeed_mps=1.0))
+    assert 500 not in monitor._pending
+
+
+def test_a_reverse_advance_never_sets_the_direction(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="rear", distance_m=5.0, reverse=True))
+    assert monitor.direction == 0
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=5.0))
+    assert monitor.direction == 1

@@ -30,7 +30,7 @@ class LocalBus:
     def __init__(self) -> None:
         self._subscribers: dict[str, list[Inbox]] = {}
         self._taps: list[Tap] = []
-        self._delivered_taps: list[Tap] = []
+        self._delivered_taps: dict[str, list[Tap]] = {}
         self.channel: ChannelModel | None = None
 
     def subscribe(self, topics: Sequence[str]) -> Inbox:
@@ -44,12 +44,14 @@ class LocalBus:
         """Observe every published message (recording); taps see messages before channel faults."""
         self._taps.append(observer)
 
-    def tap_delivered(self, observer: Tap) -> None:
-        """Observe every message as the channel delivers it (after drops, delays, reordering)."""
-        self._delivered_taps.append(observer)
+    def tap_delivered(self, observer: Tap, topics: Sequence[str]) -> None:
+        """Observe the messages on ``topics`` as the channel delivers them (after drops, delays,
+        duplication and reordering): what a subscriber actually received."""
+        for topic in topics:
+            self._delivered_taps.setdefault(topic, []).append(observer)
 
     def _deliver(self, topic: str, msg: Any) -> None:
-        for tap in self._delivered_taps:
+        for tap in self._delivered_taps.get(topic, ()):
             tap(topic, msg)
         envelope = (topic, msg)
         for inbox in self._subscribers.get(topic, ()):
@@ -67,11 +69,11 @@ class LocalBus:
         for topic, msg in outputs:
             for tap in taps:
                 tap(topic, msg)
-            inboxes = subscribers.get(topic)
-            if delivered_taps:
+            if topic in delivered_taps:
                 for routed in (channel.route(topic, msg) if channel is not None else (msg,)):
                     self._deliver(topic, routed)
                 continue
+            inboxes = subscribers.get(topic)
             if channel is None:
                 if inboxes:
                     envelope = (topic, msg)

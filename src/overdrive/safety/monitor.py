@@ -97,6 +97,9 @@ COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
 }
 """Numeric fields of the commands the finite rule checks."""
 
+DELIVERED_TOPICS = (Topic.SET_SPEED,)
+"""Topics the judge needs as delivered (``observe_delivered``), after channel faults."""
+
 TRUTH_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2", "lat_accel_mps2",
                 "curvature_1pm", "pitch_rad", "roll_rad", "odometer_m")
 
@@ -273,9 +276,9 @@ class Monitor:
             handler(msg)
 
     def observe_delivered(self, topic: str, msg: Any) -> None:
-        """Every message as it reached its subscribers (after channel faults)."""
-        if topic == Topic.SET_SPEED:
-            self.last_spss_s = self.now_s
+        """Every message on ``DELIVERED_TOPICS`` as it reached its subscribers (after channel
+        faults): the SPSS the speed server was delivered."""
+        self.last_spss_s = self.now_s
 
     # ------------------------------------------------------------------ commands as issued
 
