@@ -55,6 +55,13 @@ def move(distance_m: float, maxspeed_mps: float = 10.0, kind: str = "move", cid:
     return MoveCommand(kind=kind, command_id=cid, distance_m=distance_m, maxspeed_mps=maxspeed_mps)
 
 
+def coasting_accel_mps2(params, speed_mps: float, pitch_rad: float) -> float:
+    """Acceleration with no force at the tyres: gravity along the slope, rolling resistance, drag."""
+    resist = (params.rolling_resistance * G_MPS2 * math.cos(pitch_rad)
+              + 0.5 * 1.225 * params.drag_area_m2 * speed_mps ** 2 / params.mass_kg)
+    return -G_MPS2 * math.sin(pitch_rad) - math.copysign(resist, speed_mps)
+
+
 class Clock:
     """Feeds one monitor synthetic ground truth on a 10 ms clock."""
 
@@ -63,7 +70,10 @@ class Clock:
         self.tick = 0
 
     def at(self, x_m: float, speed_mps: float = 1.0, **kw: float) -> None:
+        """Truth at ``x_m``; unless ``accel`` is given the vehicle coasts (no tyre force)."""
         m = self.monitor
+        if "accel" not in kw:
+            kw["accel"] = coasting_accel_mps2(m.params, speed_mps, kw.get("pitch_rad", 0.0))
         m.now_s = self.tick * DT
         m.observe(Topic.TRUTH, truth(x_m, speed_mps, **kw))
         m.tick(m.now_s)
@@ -144,11 +154,8 @@ def test_stop_is_judged_against_the_shortest_physical_stop(preset: str, offset: 
     clock.at(20.0, 10.0, pitch_rad=pitch_rad)
     clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
     decel = min(params.max_brake_decel_mps2, 0.8 * G_MPS2 * math.cos(pitch_rad)) + G_MPS2 * math.sin(pitch_rad)
-    # holding 10 m/s uphill the tyres push (g sin(pitch)): that drive decays with the throttle
-    carried = max(G_MPS2 * math.sin(pitch_rad), 0.0) * params.throttle_lag_s
-    shortest = 10.0 * (DT + params.brake_lag_s) + 100.0 / (2.0 * decel) + carried * 10.0 / decel
-    assert shortest_stop_m(10.0, params, 0.8, pitch_rad, DT,
-                           drive_accel_mps2=G_MPS2 * math.sin(pitch_rad)) == pytest.approx(shortest)
+    shortest = 10.0 * (DT + params.brake_lag_s) + 100.0 / (2.0 * decel)
+    assert shortest_stop_m(10.0, params, 0.8, pitch_rad, DT) == pytest.approx(shortest)
     clock.at(20.0 + shortest + offset, 0.0, pitch_rad=pitch_rad)
     assert bool(rules(monitor)) == (offset > 0)
 
@@ -663,3 +670,31 @@ def test_a_reverse_advance_never_sets_the_direction(monitor: Monitor) -> None:
     assert monitor.direction == 0
     clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=5.0))
     assert monitor.direction == 1
+
+
+@pytest.mark.parametrize("drive", [0.5, 2.0])
+def test_a_stop_while_driving_allows_for_the_throttles_lag(drive: float) -> None:
+    """The tyres were pushing: the drive decays with the throttle's lag, and the speed it adds
+    meanwhile is carried to the stop."""
+    p = ESCAPE_HYBRID
+    decel = min(p.max_brake_decel_mps2, 0.8 * G_MPS2)
+    coasting = shortest_stop_m(10.0, p, 0.8, 0.0, DT)
+    carried = drive * p.throttle_lag_s * 10.0 / decel
+    assert shortest_stop_m(10.0, p, 0.8, 0.0, DT, drive_accel_mps2=drive) == \
+        pytest.approx(coasting + carried)
+    monitor = Monitor(p, 0.8, DT)
+    clock = Clock(monitor)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=12.0))
+    clock.at(0.0, 10.0, accel=drive + coasting_accel_mps2(p, 10.0, 0.0))
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
+    clock.at(coasting + carried - 0.001, 0.0)
+    assert rules(monitor) == {}
+    clock.at(coasting + carried + 0.001, 0.0)
+    assert "authorization[planner]" in rules(monitor)
+
+
+def test_a_curve_leaves_less_grip_for_braking() -> None:
+    straight = physical_decel_mps2(ESCAPE_HYBRID, 0.8, 0.0, reverse=False)
+    curve = physical_decel_mps2(ESCAPE_HYBRID, 0.8, 0.0, reverse=False, lat_accel_mps2=5.0)
+    assert curve == pytest.approx(math.sqrt((0.8 * G_MPS2) ** 2 - 25.0))
+    assert curve < straight

@@ -247,8 +247,15 @@ class Monitor:
         if old is None or (worst and amount > old.amount):
             self.records[key] = Violation(rule, key, self.now_s, amount, unit, message)
 
+    def _tyre_accel_mps2(self, speed_mps: float, accel_mps2: float, pitch_rad: float) -> float:
+        """The tyres' longitudinal force per unit mass: gravity, rolling and air resistance removed."""
+        p = self.params
+        resist = (p.rolling_resistance * G_MPS2 * math.cos(pitch_rad)
+                  + 0.5 * AIR_DENSITY_KGPM3 * p.drag_area_m2 * speed_mps * speed_mps / p.mass_kg)
+        return accel_mps2 + G_MPS2 * math.sin(pitch_rad) + math.copysign(resist, speed_mps)
+
     def _shortest_stop(self, speed_mps: float, reverse: bool) -> float:
-        drive = self.accel_mps2 + G_MPS2 * math.sin(self.pitch_rad)   # tyre force, gravity removed
+        drive = self._tyre_accel_mps2(self.speed_mps, self.accel_mps2, self.pitch_rad)
         return shortest_stop_m(speed_mps, self.params, self.friction, self.pitch_rad,
                                self.period_s, reverse,
                                drive_accel_mps2=-drive if reverse else drive,
@@ -543,11 +550,7 @@ class Monitor:
         # vehicle's skid-pad figure, measured on dry pavement, scaled down on slippery roads
         ax_max = min(max(p.max_decel_mps2, p.max_brake_decel_mps2), self.friction * G_MPS2)
         ay_max = p.skidpad_lat_g * G_MPS2 * min(self.friction / DRY_MU, 1.0)
-        v = truth.speed_mps
-        resist = (p.rolling_resistance * G_MPS2 * math.cos(truth.pitch_rad)
-                  + 0.5 * AIR_DENSITY_KGPM3 * p.drag_area_m2 * v * v / p.mass_kg)
-        # tyre force: gravity and rolling and air resistance removed
-        ax = truth.accel_mps2 + G_MPS2 * math.sin(truth.pitch_rad) + math.copysign(resist, v)
+        ax = self._tyre_accel_mps2(truth.speed_mps, truth.accel_mps2, truth.pitch_rad)
         ay = truth.lat_accel_mps2
         usage = math.hypot(ax / ax_max, ay / ay_max)
         if usage > 1.0 + ELLIPSE_TOLERANCE:

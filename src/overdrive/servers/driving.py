@@ -97,6 +97,9 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     slippery_hold_s: float = 30.0      # traction control seen within this: slippery, want low gear
     gear_dwell_s: float = 1.0          # a wish for another gear must last this long
     gear_speed_fraction: float = 0.9   # goal <= this x gear top speed (redline fade, seed 001 limits)
+    normal_stop_reaction_s: float = 0.3  # a stop on the normal path loses this much at speed: up to
+                                         # one SPSS period, the reference ease-in, brake build-up
+                                         # (issue 17: below it the end is met by hard braking)
 
 
 # --------------------------------------------------------------------------- validation
@@ -412,6 +415,7 @@ class DrivingModule:
         self.a_signed_mps2 = 0.0
         self.goal_mps = 0.0
         self._cut: float | None = None   # distance left when the terminal stop was commanded
+        self.hard_brake = False          # braking with everything until the vehicle stands
         self._cut_direction = False
         self.gears = GearTable(params)
         self._low_gear_max_mps = params.gear(params.low_gear).max_speed_mps
@@ -550,15 +554,20 @@ class DrivingModule:
                                             plan_ell)
         request = self._client(now_s, v)
         goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
+        urgent = self._hard_brake(now_s, remaining, v, limits, out)
+        if self.hard_brake:
+            goal = 0.0
         self.goal_mps = goal
 
         if self.first_s is None:
             self.first_s = now_s
         waiting = server is None and now_s < self.first_s + cfg.spss_period_s - TIME_EPS_S
-        if now_s + TIME_EPS_S >= self.next_spss_s and not waiting:
+        if (now_s + TIME_EPS_S >= self.next_spss_s or urgent) and not waiting:
             overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
             speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, limits,
                                                                        overload_rate, cfg)
+            if self.hard_brake:
+                rate = self.params.max_brake_decel_mps2   # the speed server's full-brake request
             if not request.drive:
                 speed_cmd = 0.0
             out.append((Topic.SET_SPEED, SetSpeed(
@@ -586,6 +595,31 @@ class DrivingModule:
         return out
 
     # ------------------------------------------------------------------ helpers
+
+    def _hard_brake(self, now_s: float, remaining_m: float, v: float, limits: Longitudinal,
+                    out: list) -> bool:
+        """Issue 17: when what is left of the authorization is shorter than a stop on the normal
+        path (``normal_stop_reaction_s`` at speed, then the ellipse's deceleration, or the
+        terminal tail), brake with everything at once, without waiting for the SPSS period,
+        until the vehicle stands. True on the period it starts (send the SPSS now)."""
+        cfg = self.config
+        if self.hard_brake:
+            if v < cfg.stopped_mps:
+                self.hard_brake = False
+            return False
+        if not math.isfinite(remaining_m) or v < cfg.stopped_mps:
+            return False
+        decel = max(limits.decel_mps2, cfg.min_rate_mps2)
+        normal_m = max(v * cfg.normal_stop_reaction_s + v * v / (2.0 * decel),
+                       stop_tail_m(v, 0.0, cfg.stop_tail_s))
+        if remaining_m >= normal_m:
+            return False
+        self.hard_brake = True
+        out.append((Topic.NOTICE, Notice(
+            kind="hard_brake", source=SOURCE, code="authorization",
+            reason=f"{remaining_m:.2f} m authorized at {v:.2f} m/s, a normal stop needs "
+                   f"{normal_m:.2f} m: braking with everything")))
+        return True
 
     def _period_ellipses(self, shrink: float) -> tuple[Ellipse, Ellipse, Ellipse]:
         """The ellipse, its share for the curve speed cap and the braking plan's share.

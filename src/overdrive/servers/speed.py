@@ -88,7 +88,8 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
     gear_cap_fraction: float = 0.9       # target capped at this share of the gear's top speed,
                                          # below the plant's redline fade (seed 001 gear limits)
     max_request_speed_mps: float = 70.0  # same bound as the scenario file's speeds
-    max_request_accel_mps2: float = 10.0  # above any preset's full-brake deceleration (9 m/s^2)
+    max_request_accel_mps2: float = 10.0  # above both presets' full-brake deceleration (9 m/s^2);
+                                          # a vehicle whose brakes give more accepts its own figure
     invalid_stop_decel_mps2: float = 2.5  # an invalid request stops the vehicle at least this hard:
                                           # the XGV's own pause deceleration (seed 000, xgv.md)
     fault_hold_s: float = 1.0            # a fault stays in the replies at least this long
@@ -121,6 +122,7 @@ class SpeedServer:
             raise ValueError(f"initial_gear: {params.preset} has no gear {initial_gear!r}")
         self.params = params
         self.config = cfg = config or SpeedServerConfig()
+        self.max_accel_mps2 = max(cfg.max_request_accel_mps2, params.max_brake_decel_mps2)
         self.gears = GearTable(params)
         self._low_gear = self.gears.get(params.low_gear)
         self._start_timeout_s = params.crank_time_s + cfg.start_timeout_margin_s
@@ -357,10 +359,10 @@ class SpeedServer:
             return FaultCode.OUT_OF_RANGE, fault_message(
                 FaultCode.OUT_OF_RANGE, field="speed_mps", value=spss.speed_mps, low=0.0,
                 high=cfg.max_request_speed_mps)
-        if not 0.0 < spss.accel_mps2 <= cfg.max_request_accel_mps2:
+        if not 0.0 < spss.accel_mps2 <= self.max_accel_mps2:
             return FaultCode.OUT_OF_RANGE, fault_message(
                 FaultCode.OUT_OF_RANGE, field="accel_mps2", value=spss.accel_mps2,
-                low="0 (exclusive)", high=cfg.max_request_accel_mps2)
+                low="0 (exclusive)", high=self.max_accel_mps2)
         if spss.state not in REQUESTABLE:
             return FaultCode.BAD_STATE, fault_message(FaultCode.BAD_STATE, state=spss.state)
         gear = self.gears.get(spss.gear)
@@ -387,8 +389,8 @@ class SpeedServer:
         the allowed maximum; anything else at least at ``invalid_stop_decel_mps2``."""
         cfg = self.config
         self.target_mps = 0.0
-        if math.isfinite(spss.accel_mps2) and spss.accel_mps2 > cfg.max_request_accel_mps2:
-            self.rate_mps2 = cfg.max_request_accel_mps2
+        if math.isfinite(spss.accel_mps2) and spss.accel_mps2 > self.max_accel_mps2:
+            self.rate_mps2 = self.max_accel_mps2
         else:
             self.rate_mps2 = max(self.rate_mps2, cfg.invalid_stop_decel_mps2)
 

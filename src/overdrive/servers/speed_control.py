@@ -158,6 +158,15 @@ class LongitudinalController:
             self.v_ref_mps = 0.0
             return PedalOutput(0.0, hold, 0.0, 0.0)
 
+        if stopping and rate_mps2 >= p.max_brake_decel_mps2:
+            # a stop asked at the brakes' full deceleration or more (issue 17 hard braking): full
+            # brake now, not after the reference and the brake loop have ramped up
+            self.braking = True
+            self.throttle_pid.reset(0.0)
+            self.brake_pid.reset(100.0)
+            self.v_ref_mps = 0.0
+            return PedalOutput(0.0, 100.0, 0.0, -p.max_brake_decel_mps2)
+
         a_cmd = clamp(slope + g.speed_kp_1ps * (ref - speed_mps),
                       -g.max_decel_cmd_mps2, g.max_accel_cmd_mps2)
         need = a_cmd + resistance_mps2(p, max(speed_mps, 0.0), sin_pitch)
