@@ -97,6 +97,8 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     slippery_hold_s: float = 30.0      # traction control seen within this: slippery, want low gear
     gear_dwell_s: float = 1.0          # a wish for another gear must last this long
     gear_speed_fraction: float = 0.9   # goal <= this x gear top speed (redline fade, seed 001 limits)
+    hard_brake_min_mps: float = 0.15   # no hard braking below this: 7 sigma of the GPS speed noise
+                                       # (a standing vehicle's noise is not motion)
     normal_stop_reaction_s: float = 0.3  # a stop on the normal path loses this much at speed: up to
                                          # one SPSS period, the reference ease-in, brake build-up
                                          # (issue 17: below it the end is met by hard braking)
@@ -574,7 +576,7 @@ class DrivingModule:
                 speed_mps=speed_cmd, accel_mps2=rate, gear=request.gear, state=request.state,
                 fault=self.mode.fault)))
             self.next_spss_s = max(self.next_spss_s + cfg.spss_period_s, now_s)
-            if self.next_spss_s <= now_s + TIME_EPS_S:
+            if urgent or self.next_spss_s <= now_s + TIME_EPS_S:   # one period after this one
                 self.next_spss_s = now_s + cfg.spss_period_s
 
         # steering: rate- and jerk-limited, inside what the longitudinal command leaves
@@ -607,7 +609,7 @@ class DrivingModule:
             if v < cfg.stopped_mps:
                 self.hard_brake = False
             return False
-        if not math.isfinite(remaining_m) or v < cfg.stopped_mps:
+        if not math.isfinite(remaining_m) or v < cfg.hard_brake_min_mps:
             return False
         decel = max(limits.decel_mps2, cfg.min_rate_mps2)
         normal_m = max(v * cfg.normal_stop_reaction_s + v * v / (2.0 * decel),

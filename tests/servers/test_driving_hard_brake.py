@@ -1,0 +1,78 @@
+"""Hard braking (issue 17): when what is left of the authorization is shorter than a normal stop,
+the driving module asks for a full-brake stop at once, without waiting for the SPSS period, and
+the SPSS stream keeps its 100 ms cadence."""
+
+from __future__ import annotations
+
+import pytest
+
+from overdrive.messages import AdvanceAuthorization, Notice, SetSpeed, Topic
+from overdrive.servers.driving import DrivingModule
+from tests.servers.driving_harness import DT_S, outputs, sensors
+
+
+def drive(node: DrivingModule, t0: float, seconds: float, speed: float, odo: float,
+          extra: list | None = None) -> tuple[list, float]:
+    out: list = []
+    n = round(seconds / DT_S)
+    for i in range(n):
+        inbox = sensors(node.params, speed_mps=speed, odometer_m=odo)
+        if i == 0 and extra:
+            inbox += extra
+        out += [(t0 + i * DT_S, topic, msg) for topic, msg in node.step(t0 + i * DT_S, inbox)]
+        odo += speed * DT_S
+    return out, odo
+
+
+def spss_times(out: list) -> list[float]:
+    return [t for t, topic, _ in out if topic == Topic.SET_SPEED]
+
+
+@pytest.mark.parametrize("speed", [3.0, 8.0, 12.0])
+def test_a_cut_below_a_normal_stop_asks_for_full_brake_at_once(preset, speed: float) -> None:
+    node = DrivingModule(preset)
+    out, odo = drive(node, 0.0, 1.05, speed, 0.0,
+                     [(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=500.0))])
+    cut, odo = drive(node, 1.05, 0.5, speed, odo,
+                     [(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=1.0))])
+    first_t, _, first = next((t, topic, m) for t, topic, m in cut if topic == Topic.SET_SPEED)
+    assert first_t == pytest.approx(1.05), "sent in the period the cut arrived, not at the next slot"
+    assert (first.speed_mps, first.accel_mps2) == (0.0, preset.max_brake_decel_mps2)
+    notices = [m for _, topic, m in cut if topic == Topic.NOTICE and m.kind == "hard_brake"]
+    assert len(notices) == 1 and "braking with everything" in notices[0].reason
+    times = spss_times(out + cut)
+    gaps = [b - a for a, b in zip(times, times[1:])]
+    assert max(gaps) <= 0.1 + 1e-9, "an urgent SPSS never opens a gap in the stream"
+
+
+def test_a_normal_approach_never_hard_brakes(preset) -> None:
+    """Following its own braking curve the module never needs the hard path."""
+    node = DrivingModule(preset)
+    odo, speed = 0.0, 0.0
+    events: list[Notice] = []
+    t = 0.0
+    for i in range(3000):
+        inbox = sensors(preset, speed_mps=speed, odometer_m=odo)
+        if i == 0:
+            inbox.append((Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=40.0)))
+        out = node.step(t, inbox)
+        spss = outputs(out, Topic.SET_SPEED)
+        if spss:
+            goal: SetSpeed = spss[-1]
+        events += [m for m in outputs(out, Topic.NOTICE) if m.kind == "hard_brake"]
+        # an ideal vehicle: follows the SPSS at its rate
+        if speed < goal.speed_mps:
+            speed = min(goal.speed_mps, speed + goal.accel_mps2 * DT_S)
+        else:
+            speed = max(goal.speed_mps, speed - goal.accel_mps2 * DT_S)
+        odo += speed * DT_S
+        t += DT_S
+    assert events == [] and 39.0 < odo <= 40.0
+
+
+@pytest.mark.parametrize("noise", [0.05, 0.1, 0.14])
+def test_no_hard_brake_for_a_standing_vehicles_speed_noise(preset, noise: float) -> None:
+    node = DrivingModule(preset)
+    out, _ = drive(node, 0.0, 1.0, noise, 0.0,
+                   [(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=0.0))])
+    assert not [m for _, topic, m in out if topic == Topic.NOTICE and m.kind == "hard_brake"]
