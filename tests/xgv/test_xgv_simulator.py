@@ -270,3 +270,18 @@ def test_timestamp_fields() -> None:
     stamp = jaus_timestamp(3723.456)
     assert (stamp.day, stamp.hour, stamp.minute, stamp.second, stamp.millisecond) == (1, 1, 2, 3, 456)
     assert msgspec.structs.astuple(jaus_timestamp(0.0)) == (1, 0, 0, 0, 0)
+
+
+def test_one_message_per_datagram_unless_packing_is_asked() -> None:
+    """OpenJAUS receivers keep only a datagram's first message (issue 19): never pack by default."""
+    from overdrive.jaus import CreateServiceConnection, ReportVelocityState, ReportWrenchEffort
+    from overdrive.jaus.judp import split
+
+    for packed in (False, True):
+        sim = make_sim(pack_datagrams=packed)
+        peer = Peer(sim)
+        for code in (ReportVelocityState.code, ReportWrenchEffort.code, 0x4002):
+            peer.send(CreateServiceConnection(command_code=code, rate_hz=100.0), service=True)
+        sizes = [len(split(data)) for data, _ in sim.step(0.0)]
+        assert sum(sizes) >= 3
+        assert (max(sizes) > 1) if packed else sizes == [1] * len(sizes)

@@ -5,6 +5,11 @@ A datagram is the transport version byte ``0x01`` then one or more messages, eac
 u16 holding 16 + payload size. A frame length of 0 ends the datagram; anything after it is
 ignored. Header compression is not supported (non-zero compression bytes are rejected).
 Multi-packet messages are rejected rather than reassembled, as by :func:`codec.decode`.
+
+Sending: one message per datagram by default (:func:`datagrams`), because OpenJAUS's receiver
+(``JudpInterface.cpp``, ``recvThreadRun``) takes only the first message of a datagram and drops
+the rest (shared/interop/openjaus README); packing (:func:`pack`) is an explicit option for
+peers known to accept it. Receiving accepts any number of messages per datagram.
 """
 
 from __future__ import annotations
@@ -129,3 +134,11 @@ def pack(messages: Iterable[Message], max_size: int = MAX_DATAGRAM_SIZE) -> list
     if batch:
         datagrams.append(frame(batch))
     return datagrams
+
+
+def datagrams(messages: Iterable[Message], packed: bool = False) -> list[bytes]:
+    """The datagrams carrying ``messages`` in order: one each (the default, what OpenJAUS
+    sends and can receive), or as few as they fit in when ``packed``."""
+    if packed:
+        return pack(messages)
+    return [frame((encode(message),)) for message in messages]

@@ -1163,8 +1163,7 @@ class _Signals(Message, frozen=True):
         if len(payload) < _SIGNALS_HEAD.size:
             raise JausDecodeError(f"{cls.name}: payload of {len(payload)} bytes is truncated")
         version, presence = _SIGNALS_HEAD.unpack_from(payload)
-        if presence & ~_SIGNALS_VALID_BITS:
-            raise JausDecodeError(f"{cls.name}: presence 0x{presence:02X} sets undefined bits")
+        presence &= _SIGNALS_VALID_BITS  # undefined bits ignored, as for every presence vector
         expected = (
             _SIGNALS_HEAD.size
             + (presence & 1)

@@ -94,7 +94,7 @@ from overdrive.jaus import (
     XgvSecondaryStatus,
     decode_datagram,
 )
-from overdrive.jaus.judp import pack
+from overdrive.jaus.judp import datagrams
 from overdrive.jaus.messages import LINK_STATUS_SHIFT
 from overdrive.messages import SafetyDevices, Topic
 from overdrive.servers.speed_control import LongitudinalController, gains_for
@@ -296,8 +296,10 @@ class XgvSimulator:
     def __init__(self, params: VehicleParams, world: World | None = None, seed: int = 1, *,
                  ready: bool = False, subsystem: int = 1, node: int = 1,
                  command_timeout_s: float | None = COMMAND_TIMEOUT_S,
-                 origin_deg: tuple[float, float] = ORIGIN_DEG) -> None:
+                 origin_deg: tuple[float, float] = ORIGIN_DEG,
+                 pack_datagrams: bool = False) -> None:
         self.params = params
+        self.pack_datagrams = pack_datagrams   # one message per datagram unless asked (judp)
         self.subsystem, self.node = subsystem, node
         self.core = VehicleSim(params, world or World(), seed, ready=ready, limits=GateLimits(
             steer_rate_pct_per_s=100.0 * params.steer_rate_rps / params.max_steer_rad,
@@ -835,16 +837,22 @@ class XgvSimulator:
             sequence=sequence))
 
     def _pack(self, out: Iterable[tuple[Message, Address]]) -> Outgoing:
-        by_address: dict[Address, list[Message]] = {}
-        for message, address in out:
-            by_address.setdefault(address, []).append(message)
-        datagrams: Outgoing = []
-        for address, messages in by_address.items():
+        """The datagrams for ``out``: one message each (judp), or packed per address."""
+        batches: list[tuple[Address, list[Message]]] = []
+        if self.pack_datagrams:
+            by_address: dict[Address, list[Message]] = {}
+            for message, address in out:
+                by_address.setdefault(address, []).append(message)
+            batches = [(address, messages) for address, messages in by_address.items()]
+        else:
+            batches = [(address, [message]) for message, address in out]
+        outgoing: Outgoing = []
+        for address, messages in batches:
             try:
-                datagrams.extend((d, address) for d in pack(messages))
+                outgoing.extend((d, address) for d in datagrams(messages, self.pack_datagrams))
             except JausEncodeError:
                 self.stats.invalid += 1
-        return datagrams
+        return outgoing
 
     # ------------------------------------------------------------------ views
 

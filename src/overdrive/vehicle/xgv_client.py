@@ -71,7 +71,7 @@ from overdrive.jaus import (
     decode_datagram,
     safety_mode_name,
 )
-from overdrive.jaus.judp import pack
+from overdrive.jaus.judp import datagrams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -120,6 +120,8 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
     pose_component: int = XgvComponent.PRIMITIVE_DRIVER
     publish_truth: bool = False           # overdrive drive: the run's trace from the reports
     limits: GateLimits | None = None      # who may command (default: VehicleSim's sources)
+    pack_datagrams: bool = False          # several messages per datagram: only for peers that
+                                          # read them all (OpenJAUS keeps the first only)
 
 
 class ClientStats:
@@ -454,7 +456,7 @@ class XgvClient:
                 messages.append(discrete)
             messages.append(self._wrench() if cfg.control == "wrench" else self._motion())
         try:
-            return pack(messages)
+            return datagrams(messages, cfg.pack_datagrams)
         except JausEncodeError:   # cannot happen with validated inputs; never crash the stack
             self._notice("encode", "a command could not be encoded")
             return []
@@ -464,7 +466,7 @@ class XgvClient:
         if not self.control:
             return []
         self.control = False
-        return pack([self._to(ReleaseComponentControl(), self.target)])
+        return datagrams([self._to(ReleaseComponentControl(), self.target)])
 
     def _wrench(self) -> SetWrenchEffort:
         throttle, brake, _ = gate_pedals(self.pedals.throttle_pct, self.pedals.brake_pct)
