@@ -1,0 +1,78 @@
+"""OpenJAUS 3.3 for the interop tests: located, built once per session into a cache keyed by
+the hash of the kit (tarball, Makefile, test tools), or the tests skip saying why.
+
+The kit is ``../shared/interop/openjaus`` seen from the project root (its README), or
+``$OVERDRIVE_OPENJAUS_KIT``. The build goes to ``$OVERDRIVE_CACHE`` (default
+``$XDG_CACHE_HOME/overdrive``, else ``~/.cache/overdrive``) under ``openjaus-<hash>``; a lock
+file makes concurrent sessions build it once. Nothing is written into the kit or the project.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+PROJECT = Path(__file__).resolve().parents[2]
+BUILD_TIMEOUT_S = 600  # ~20 s on 2 idle cores (kit README); generous for a loaded CI machine
+KIT_FILES = ("openjaus-3.3-b3722c1.tar.gz", "Makefile", "ojcodec.c", "ojpeer.c", "ojcmpt.c")
+
+
+def kit_dir() -> Path:
+    return Path(os.environ.get("OVERDRIVE_OPENJAUS_KIT", PROJECT.parent / "shared/interop/openjaus"))
+
+
+def cache_root() -> Path:
+    if "OVERDRIVE_CACHE" in os.environ:
+        return Path(os.environ["OVERDRIVE_CACHE"])
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "overdrive"
+
+
+def kit_hash(kit: Path) -> str:
+    digest = hashlib.sha256()
+    for name in KIT_FILES:
+        digest.update(name.encode() + b"\0" + (kit / name).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def build(target: str = "all") -> Path:
+    """The build directory holding OpenJAUS's products for ``target`` (``all`` or ``vsim``)."""
+    kit = kit_dir()
+    missing = [name for name in KIT_FILES if not (kit / name).is_file()]
+    if missing:
+        pytest.skip(f"OpenJAUS interop kit not found at {kit} (missing {', '.join(missing)}); "
+                    "set OVERDRIVE_OPENJAUS_KIT or put ../shared beside the project")
+    tools = [t for t in ("make", "gcc", "g++", "ar") if shutil.which(t) is None]
+    if tools:
+        pytest.skip(f"cannot build OpenJAUS: {', '.join(tools)} not installed")
+    out = cache_root() / f"openjaus-{kit_hash(kit)}"
+    stamp = out / f".built-{target}"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out.parent / f"{out.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not stamp.exists():
+            result = subprocess.run(
+                ["make", "-C", str(kit), f"BUILD={out}", "-j2", target],
+                capture_output=True, text=True, timeout=BUILD_TIMEOUT_S, check=False)
+            if result.returncode != 0:
+                pytest.fail(f"building OpenJAUS ({target}) failed:\n{result.stdout[-3000:]}"
+                            f"\n{result.stderr[-3000:]}")
+            stamp.touch()
+    return out
+
+
+@pytest.fixture(scope="session")
+def openjaus() -> Path:
+    """The directory with ojcodec, ojpeer, ojcmpt, ojNodeManager (built once)."""
+    return build("all")
+
+
+@pytest.fixture(scope="session")
+def kit() -> Path:
+    return kit_dir()
