@@ -15,10 +15,10 @@ from typing import Any
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from oj_messages import STANDARD, build, generate, to_ojcodec  # noqa: E402
+from oj_messages import STANDARD, build, generate, to_ojcodec
 
-from overdrive.jaus import Message, decode, encode  # noqa: E402
-from overdrive.jaus.layout import PresenceLayout  # noqa: E402
+from overdrive.jaus import Message, decode, encode
+from overdrive.jaus.layout import PresenceLayout
 
 pytestmark = pytest.mark.interop
 
@@ -125,3 +125,40 @@ def test_openjaus_default_presence_vectors_decode(openjaus: Path, cls: type[Mess
         # the same field bytes as ours with the defined bits only
         assert wire[16 + layout.pv_size:] == encode(message)[16 + layout.pv_size:]
         assert decode(wire) == decode(encode(message))
+
+
+def test_discovery_messages_match_libjaus(openjaus: Path) -> None:
+    """The dynamic-configuration messages an OpenJAUS node manager exchanges: our encoding is
+    libjaus's, and libjaus's Report Configuration / Report Services decode and re-encode to the
+    same bytes (ojcodec encodes those two but does not decode them)."""
+    from overdrive.jaus import (
+        ConfigurationNode,
+        QueryConfiguration,
+        QueryIdentification,
+        QueryServices,
+        ReportConfiguration,
+        ReportIdentification,
+        ReportServices,
+    )
+
+    ours = [QueryIdentification(query_field=f) for f in range(1, 5)] + [
+        QueryConfiguration(query_field=2), QueryConfiguration(query_field=3), QueryServices(),
+        ReportIdentification(query_type=2, type=10001, identification="overdrive-xgv-sim"),
+        ReportIdentification(query_type=4, authority=6, type=33, identification="x" * 79),
+        ReportConfiguration(nodes=(ConfigurationNode(1, ((1, 1), (33, 1), (10, 1))),
+                                   ConfigurationNode(2, ((4, 1),)))),
+    ]
+    lines = [to_ojcodec(m) for m in ours[:-1]]
+    lines.append(to_ojcodec(ReportConfiguration()) + " config=1:1.1,33.1,10.1;2:4.1")
+    lines += ["E report-services", "E report-services service_type=33"]
+    answers = ojcodec(openjaus, lines)
+    wires = [bytes.fromhex(a[4:]) for a in answers]
+    for message, wire in zip(ours, wires, strict=False):
+        assert encode(message) == wire, (message, wire.hex())
+    for wire in wires:
+        assert encode(decode(wire)) == wire
+    services = decode(wires[-1])
+    assert isinstance(services, ReportServices)
+    assert [s.type for s in services.services] == [0, 33]
+    decoded = ojcodec(openjaus, [f"D {w.hex()}" for w in wires[:9]])
+    assert compare_decoding(wires[:9], decoded) == []
