@@ -285,3 +285,55 @@ def test_one_message_per_datagram_unless_packing_is_asked() -> None:
         sizes = [len(split(data)) for data, _ in sim.step(0.0)]
         assert sum(sizes) >= 3
         assert (max(sizes) > 1) if packed else sizes == [1] * len(sizes)
+
+
+@pytest.mark.parametrize("rate_hz", [1.0, 5.0, 10.0, 12.5, 20.0, 33.0, 50.0, 100.0])
+def test_service_connection_reports_at_the_confirmed_rate(rate_hz: float) -> None:
+    """Issue 19: 10 Hz came out at 12.5 Hz. Over 10 s the count is the rate's, within one."""
+    from overdrive.jaus import ConfirmServiceConnection, CreateServiceConnection, ReportVelocityState
+
+    sim = make_sim()
+    peer = Peer(sim)
+    peer.send(CreateServiceConnection(command_code=ReportVelocityState.code, rate_hz=rate_hz),
+              service=True)
+    confirmed = peer.of(ConfirmServiceConnection)[-1].rate_hz
+    got = peer.step(1000)
+    count = sum(isinstance(m, ReportVelocityState) for m in got)
+    assert abs(count - 10.0 * confirmed) <= 1.0, (count, confirmed)
+
+
+def test_discovery_queries_are_answered_as_openjaus_expects() -> None:
+    """An OpenJAUS node manager asks Identification, Configuration and Services (issue 19)."""
+    from overdrive.jaus import (
+        QueryConfiguration,
+        QueryField,
+        QueryIdentification,
+        QueryServices,
+        ReportConfiguration,
+        ReportIdentification,
+        ReportServices,
+        encode,
+    )
+
+    sim = make_sim()
+    peer = Peer(sim)
+    (subsystem,) = peer.send(QueryIdentification(query_field=QueryField.SUBSYSTEM), to=NM)
+    (node,) = peer.send(QueryIdentification(query_field=QueryField.NODE), to=NM)
+    (component,) = peer.send(QueryIdentification(query_field=QueryField.COMPONENT))
+    assert isinstance(subsystem, ReportIdentification) and subsystem.query_type == 2
+    assert subsystem.header.source == NM and subsystem.header.destination == CLIENT
+    assert "XGV" in subsystem.identification
+    assert node.query_type == 3 and component.identification == "Primitive Driver"
+    (config,) = peer.send(QueryConfiguration(query_field=QueryField.SUBSYSTEM), to=NM)
+    assert isinstance(config, ReportConfiguration)
+    assert [n.node for n in config.nodes] == [1]
+    assert (33, 1) in config.nodes[0].components and (1, 1) in config.nodes[0].components
+    (services,) = peer.send(QueryServices())
+    assert isinstance(services, ReportServices)
+    assert [s.type for s in services.services] == [0, 33]
+    assert (0x0405, 0x0FFF) in services.services[1].inputs
+    assert (0x4405, 0x0FFF) in services.services[1].outputs
+    assert all(encode(m) for m in (subsystem, node, component, config, services))
+    # a node-level query at a component that is not the node manager is not answered
+    assert peer.send(QueryConfiguration(query_field=QueryField.SUBSYSTEM)) == []
+    assert sim.stats.unsupported == 1

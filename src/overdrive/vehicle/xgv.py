@@ -42,6 +42,7 @@ from overdrive.jaus import (
     ActivateServiceConnection,
     ClearEmergency,
     ComponentStatus,
+    ConfigurationNode,
     ConfirmComponentControl,
     ConfirmServiceConnection,
     ControlResponse,
@@ -53,24 +54,33 @@ from overdrive.jaus import (
     JausTimestamp,
     Message,
     Propulsion,
+    QueryComponentAuthority,
     QueryComponentControl,
     QueryComponentStatus,
+    QueryConfiguration,
     QueryDiscreteDevices,
+    QueryField,
     QueryGlobalPose,
     QueryHeartbeatPulse,
+    QueryIdentification,
     QueryLocalPose,
+    QueryServices,
     QueryVelocityState,
     QueryWrenchEffort,
     RejectComponentControl,
     ReleaseComponentControl,
+    ReportComponentAuthority,
     ReportComponentControl,
     ReportComponentStatus,
+    ReportConfiguration,
     ReportCurvature,
     ReportDiscreteDevices,
     ReportErrorCount,
     ReportGlobalPose,
     ReportHeartbeatPulse,
+    ReportIdentification,
     ReportLocalPose,
+    ReportServices,
     ReportSignals,
     ReportVehicleMode,
     ReportVelocityState,
@@ -79,6 +89,7 @@ from overdrive.jaus import (
     RequestComponentControl,
     Reset,
     Resume,
+    Service,
     ServiceConnectionResponse,
     SetComponentAuthority,
     SetDiscreteDevices,
@@ -122,6 +133,8 @@ Outgoing = list[tuple[bytes, Address]]
 
 HEARTBEAT_PERIOD_S: Final = 1.0        # reference §2: Report Heartbeat Pulse "at about 1 Hz"
 MAX_REPORT_RATE_HZ: Final = 100.0      # the simulator steps at 100 Hz: faster is granted at this
+STEP_TOLERANCE_S: Final = 0.005        # half the 10 ms step (xgv_sim.PERIOD_S): a report due
+                                       # within it goes out in this step
 COMMAND_TIMEOUT_S: Final = 0.5         # wrench mode: no Set Wrench Effort for this long -> error pause
                                        # (a dead client must not leave the throttle open; our choice)
 LAPSE_DECEL_MPS2: Final = PAUSE_DECEL_MPS2  # a lapsed motion profile stops like a pause (seed 000)
@@ -174,6 +187,27 @@ REPORTS: Final[dict[int, frozenset[int]]] = {
 
 CONTROLLABLE: Final = frozenset({XgvComponent.PRIMITIVE_DRIVER, XgvComponent.MOTION_PROFILE_DRIVER,
                                  XgvComponent.SIGNALS_DRIVER})
+# Discovery (issue 19): what an OpenJAUS node manager asks of every component it finds. The
+# names are ours; types and authority are 0 as OpenJAUS's own node manager reports them.
+SUBSYSTEM_IDENTIFICATION: Final = "overdrive xgv-sim (ByWire XGV)"
+NODE_IDENTIFICATION: Final = "XGV controller"
+COMPONENT_IDENTIFICATION: Final = {
+    XgvComponent.NODE_MANAGER: "Node Manager", XgvComponent.MOTION_PROFILE_DRIVER:
+    "Motion Profile Driver", XgvComponent.SIGNALS_DRIVER: "Signals Driver",
+    XgvComponent.ERROR_MANAGER: "Error Manager", XgvComponent.PRIMITIVE_DRIVER: "Primitive Driver",
+    GLOBAL_POSE_SENSOR: "Global Pose Sensor", LOCAL_POSE_SENSOR: "Local Pose Sensor",
+    VELOCITY_STATE_SENSOR: "Velocity State Sensor"}
+CORE_SERVICE: Final = 0   # OpenJAUS jausService.h CORE_MESSAGE_SUPPORT
+CORE_INPUTS: Final = (0x0001, 0x0002, 0x0003, 0x0004, 0x0005, 0x0006, 0x0007, 0x0008, 0x0009,
+                      0x000A, 0x000B, 0x000C, 0x000D, 0x000E, 0x000F, 0x0010, 0x2001, 0x2002,
+                      0x200D, 0x2202)   # reference §4 core messages taken by every component
+CORE_OUTPUTS: Final = (0x0009, 0x000F, 0x0010, 0x4001, 0x4002, 0x400D, 0x4202)
+COMMANDS: Final[dict[int, tuple[tuple[int, int], ...]]] = {
+    XgvComponent.PRIMITIVE_DRIVER: ((0x0405, 0x0FFF), (0x0406, 0x0F)),   # §5, defined bits
+    XgvComponent.MOTION_PROFILE_DRIVER: ((0xE328, 0), (0x0406, 0x0F)),  # §6, relayed devices
+    XgvComponent.SIGNALS_DRIVER: ((0xE322, 0x07),)}
+PRESENCE_BITS: Final = {_WRENCH: 0x0FFF, _DISCRETE: 0x0F, _VELOCITY: 0x01FF, _GLOBAL: 0x01FF,
+                        _LOCAL: 0x01FF}
 _STATUS_NAME: Final = {ComponentStatus.READY: "ready", ComponentStatus.STANDBY: "standby",
                        ComponentStatus.INITIALIZE: "initialize", ComponentStatus.SHUTDOWN: "shutdown",
                        ComponentStatus.FAILURE: "failure", ComponentStatus.EMERGENCY: "emergency"}
@@ -443,6 +477,13 @@ class XgvSimulator:
                 self.stats.unsupported += 1
             else:
                 reply((self._to(report, comp, src), sender))
+        elif isinstance(m, QueryIdentification | QueryConfiguration | QueryServices
+                        | QueryComponentAuthority):
+            answer = self._discovery(cid, comp, m)
+            if answer is None:
+                self.stats.unsupported += 1
+            else:
+                reply((self._to(answer, comp, src), sender))
         elif isinstance(m, CreateServiceConnection):
             reply((self._to(self._create(cid, comp, m, src, sender), comp, src,
                             service_connection=True), sender))
@@ -483,6 +524,38 @@ class XgvSimulator:
             self.plan.signals = {k: v for k, v in m.fields_dict().items() if k != "version"}
         else:
             self.stats.unsupported += 1
+
+    # ------------------------------------------------------------------ discovery
+
+    def _discovery(self, cid: int, comp: Component, m: Message) -> Message | None:
+        """Answers to what an OpenJAUS node manager asks (issue 19); None: not ours to answer."""
+        node_manager = cid == XgvComponent.NODE_MANAGER
+        if isinstance(m, QueryComponentAuthority):
+            return ReportComponentAuthority(authority=comp.authority)
+        if isinstance(m, QueryServices):
+            core = Service(CORE_SERVICE, tuple((c, 0) for c in CORE_INPUTS),
+                           tuple((c, 0) for c in CORE_OUTPUTS))
+            reports = sorted(REPORTS[cid] - {_STATUS, _CONTROL, _HEARTBEAT})
+            own = Service(cid, COMMANDS.get(cid, ()) + tuple(
+                (code & 0x0FFF | 0x2000 if code < 0xE000 else code, PRESENCE_BITS.get(code, 0))
+                for code in reports if code < 0xE000),
+                tuple((code, PRESENCE_BITS.get(code, 0)) for code in reports))
+            return ReportServices(services=(core, own))
+        if isinstance(m, QueryConfiguration):
+            if not node_manager or m.query_field not in (QueryField.SUBSYSTEM, QueryField.NODE):
+                return None
+            components = tuple((c, 1) for c in sorted(self.components))
+            return ReportConfiguration(nodes=(ConfigurationNode(self.node, components),))
+        assert isinstance(m, QueryIdentification)
+        names = {QueryField.SUBSYSTEM: SUBSYSTEM_IDENTIFICATION,
+                 QueryField.NODE: NODE_IDENTIFICATION}
+        if m.query_field == QueryField.COMPONENT:
+            text = COMPONENT_IDENTIFICATION[cid]
+        elif node_manager and m.query_field in names:
+            text = names[QueryField(m.query_field)]
+        else:
+            return None
+        return ReportIdentification(query_type=m.query_field, identification=text)
 
     # ------------------------------------------------------------------ access control
 
@@ -665,7 +738,7 @@ class XgvSimulator:
             self.latest[topic] = msg
         for conn in self.connections:
             period = 1.0 / conn.rate_hz
-            if conn.active and now_s >= conn.next_s - 0.25 * period:
+            if conn.active and now_s >= conn.next_s - STEP_TOLERANCE_S:
                 report = self._report(conn.component, conn.code, conn.presence, now_s)
                 if report is not None:
                     header = Header(destination=conn.client,
@@ -673,7 +746,9 @@ class XgvSimulator:
                                     service_connection=True, sequence=conn.sequence)
                     conn.sequence = (conn.sequence + 1) % 0x10000
                     out.append((msgspec.structs.replace(report, header=header), conn.address))
-                conn.next_s = now_s + period   # phase-locked to the steps: no drift, no skips
+                # the schedule advances by whole periods, so the mean rate is the confirmed
+                # one (10 Hz was 12.5 Hz when counted from now_s); a long stall restarts it
+                conn.next_s = max(conn.next_s + period, now_s + period - STEP_TOLERANCE_S)
         if now_s >= self.next_heartbeat_s - 1e-9:
             self.next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S
             nm = self.components[XgvComponent.NODE_MANAGER]
