@@ -290,7 +290,11 @@ def test_one_message_per_datagram_unless_packing_is_asked() -> None:
 @pytest.mark.parametrize("rate_hz", [1.0, 5.0, 10.0, 12.5, 20.0, 33.0, 50.0, 100.0])
 def test_service_connection_reports_at_the_confirmed_rate(rate_hz: float) -> None:
     """Issue 19: 10 Hz came out at 12.5 Hz. Over 10 s the count is the rate's, within one."""
-    from overdrive.jaus import ConfirmServiceConnection, CreateServiceConnection, ReportVelocityState
+    from overdrive.jaus import (
+        ConfirmServiceConnection,
+        CreateServiceConnection,
+        ReportVelocityState,
+    )
 
     sim = make_sim()
     peer = Peer(sim)

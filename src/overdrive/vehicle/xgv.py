@@ -747,8 +747,11 @@ class XgvSimulator:
                     conn.sequence = (conn.sequence + 1) % 0x10000
                     out.append((msgspec.structs.replace(report, header=header), conn.address))
                 # the schedule advances by whole periods, so the mean rate is the confirmed
-                # one (10 Hz was 12.5 Hz when counted from now_s); a long stall restarts it
-                conn.next_s = max(conn.next_s + period, now_s + period - STEP_TOLERANCE_S)
+                # one (10 Hz was 12.5 Hz when counted from now_s); the first report or a stall
+                # (re)starts it from now
+                conn.next_s += period
+                if conn.next_s < now_s:
+                    conn.next_s = now_s + period
         if now_s >= self.next_heartbeat_s - 1e-9:
             self.next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S
             nm = self.components[XgvComponent.NODE_MANAGER]
