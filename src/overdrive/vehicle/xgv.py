@@ -144,8 +144,13 @@ CURVATURE_DEADBAND_1PM: Final = 1e-4  # two steps of the u16 atan(curvature) fie
 FULL_BRAKE_FRACTION: Final = 0.99     # a stop at >= this x the preset's full-brake decel: 100 %
 STOPPED_MPS: Final = 0.05              # MPD standstill (plant shift threshold, as the driving module)
 CURVATURE_TRIM_MIN_MPS: Final = 1.0    # curvature trim only where yaw rate / speed is meaningful
-MAX_PEERS: Final = 64                  # bounds memory under garbage source ids
-MAX_CONNECTIONS: Final = 256
+MAX_PEERS: Final = 64                  # per-source state bound (issue 18): a real setup has a
+                                       # handful of client ids; more are refused and counted
+MAX_CONNECTIONS: Final = 256           # all service connections (instance ids are one byte)
+MAX_CONNECTIONS_PER_PEER: Final = 16   # one client: the overdrive client opens 6, ojcmpt 3
+PEER_TIMEOUT_S: Final = 5.0            # a peer silent this long (5 heartbeat periods, reference
+                                       # §2) loses its service connections and control, and its
+                                       # id is free to come back from another address
 ORIGIN_DEG: Final = (37.2296, -80.4139)  # Global Pose datum (Blacksburg, VA); any point works
 EARTH_RADIUS_M: Final = 6_378_137.0    # WGS-84 equatorial radius (flat-earth projection)
 POSITION_RMS_M: Final = 0.02           # reported accuracy: the preset's RTK-grade GPS noise
@@ -263,7 +268,7 @@ class XgvStats:
     """Counters; the Error Manager reports them (Report Error Count, in this order)."""
 
     FIELDS = ("malformed", "ignored_no_control", "unsupported", "invalid", "unroutable",
-              "datagrams", "messages")
+              "datagrams", "messages", "spoofed", "peers_refused", "expired")
 
     def __init__(self) -> None:
         for name in self.FIELDS:
@@ -287,6 +292,14 @@ class Component:
     @property
     def status_name(self) -> str:
         return _STATUS_NAME[ComponentStatus(self.status)]
+
+
+@dataclass
+class PeerBinding:
+    """Where a client id talks from, and when it was last heard (issue 18)."""
+
+    address: Address
+    last_heard_s: float
 
 
 @dataclass
@@ -350,7 +363,7 @@ class XgvSimulator:
         self.plan = MotionPlan()
         self.devices = SafetyDevices()
         self.stats = XgvStats()
-        self.peers: dict[JausId, Address] = {}
+        self.peers: dict[JausId, PeerBinding] = {}
         self.connections: list[Connection] = []
         self._instances: dict[tuple[int, int], int] = {}
         self._sequences: dict[tuple[JausId, JausId], int] = {}
@@ -446,10 +459,63 @@ class XgvSimulator:
         if not targets:
             self.stats.unroutable += 1
             return
-        if src in self.peers or len(self.peers) < MAX_PEERS:
-            self.peers[src] = sender
+        if not self._admit_peer(src, sender, now_s):
+            return
         for cid, comp in targets:
             self._handle(cid, comp, message, src, sender, now_s, out)
+
+    # ------------------------------------------------------------------ peers (issue 18)
+
+    def _admit_peer(self, src: JausId, sender: Address, now_s: float) -> bool:
+        """Bind ``src`` to ``sender`` on first contact; False (counted) when ``src`` is bound to
+        another address and still alive, or when the peer table is full of live peers.
+
+        The binding (id -> address) is what reports, heartbeats and Reject Component Control
+        go to; it changes only after the peer has been silent for ``PEER_TIMEOUT_S``, by which
+        time its control and service connections are gone (``_expire``).
+        """
+        peer = self.peers.get(src)
+        if peer is not None and peer.address != sender:
+            if now_s - peer.last_heard_s < PEER_TIMEOUT_S:
+                self.stats.spoofed += 1
+                return False
+            self._drop_peer(src)
+            peer = None
+        if peer is None:
+            if len(self.peers) >= MAX_PEERS:
+                self._expire(now_s)
+            if len(self.peers) >= MAX_PEERS:
+                self.stats.peers_refused += 1
+                return False
+            peer = self.peers[src] = PeerBinding(sender, now_s)
+        peer.last_heard_s = now_s
+        return True
+
+    def trusted(self, address: Address) -> bool:
+        """True when a peer at ``address`` controls a component or holds a service connection
+        (the runtime edge serves such addresses first under load)."""
+        return any(peer.address == address and self._holds_session(client)
+                   for client, peer in self.peers.items())
+
+    def _holds_session(self, client: JausId) -> bool:
+        return (any(c.controller == client for c in self.components.values())
+                or any(conn.client == client for conn in self.connections))
+
+    def _drop_peer(self, client: JausId) -> None:
+        """Forget ``client``: its service connections end and it loses control (a pause)."""
+        self.peers.pop(client, None)
+        before = len(self.connections)
+        self.connections = [conn for conn in self.connections if conn.client != client]
+        self.stats.expired += before - len(self.connections)
+        for cid, comp in self.components.items():
+            if comp.controller == client:
+                self._release(cid, comp)
+
+    def _expire(self, now_s: float) -> None:
+        """Drop every peer silent for ``PEER_TIMEOUT_S`` (documented in docs/xgv.md)."""
+        for client in [c for c, p in self.peers.items()
+                       if now_s - p.last_heard_s >= PEER_TIMEOUT_S]:
+            self._drop_peer(client)
 
     def _handle(self, cid: int, comp: Component, m: Message, src: JausId, sender: Address,
                 now_s: float, out: list[tuple[Message, Address]]) -> None:
@@ -590,9 +656,9 @@ class XgvSimulator:
         if old == self.mpd.jaus_id:
             self.mpd_active = False
         else:
-            address = self.peers.get(old)
-            if address is not None:
-                out.append((self._to(RejectComponentControl(), comp, old), address))
+            peer = self.peers.get(old)
+            if peer is not None:
+                out.append((self._to(RejectComponentControl(), comp, old), peer.address))
         if comp is self.mpd and self.pd.controller == self.mpd.jaus_id:
             self._free(self.pd)
 
@@ -696,7 +762,8 @@ class XgvSimulator:
                 conn.rate_hz, conn.presence, conn.address, conn.active = (
                     rate, m.presence_vector, sender, True)
                 return confirm(ServiceConnectionResponse.CREATED, conn.instance, rate)
-        if len(self.connections) >= MAX_CONNECTIONS:
+        if (len(self.connections) >= MAX_CONNECTIONS
+                or sum(conn.client == src for conn in self.connections) >= MAX_CONNECTIONS_PER_PEER):
             return confirm(ServiceConnectionResponse.REFUSED)
         key = (cid, m.command_code)
         instance = self._instances.get(key, 0) % 255 + 1
@@ -723,6 +790,7 @@ class XgvSimulator:
         dt_s = 0.0 if self.last_step_s is None else max(0.0, now_s - self.last_step_s)
         self.last_step_s = now_s
         out: list[tuple[Message, Address]] = []
+        self._expire(now_s)
         self._take_pd_for_mpd(out)
         mode = self._modes(now_s)
         if mode.control_mode == "motion-profiles":
@@ -755,8 +823,8 @@ class XgvSimulator:
         if now_s >= self.next_heartbeat_s - 1e-9:
             self.next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S
             nm = self.components[XgvComponent.NODE_MANAGER]
-            for client, address in self.peers.items():
-                out.append((self._to(ReportHeartbeatPulse(), nm, client), address))
+            for client, peer in self.peers.items():
+                out.append((self._to(ReportHeartbeatPulse(), nm, client), peer.address))
         return self._pack(out)
 
     def _motion_loops(self, dt_s: float, now_s: float) -> None:
