@@ -10,7 +10,7 @@ started a little later (``overdrive drive``) sees the events when the scenario s
 
 Bounded input (issue 18): each 10 ms tick reads at most ``MAX_READ_PER_TICK`` datagrams (for
 at most ``READ_BUDGET_S``), then hands the simulator first every datagram from an address that
-holds a session (control or a service connection: ``XgvSimulator.trusted``), then the others,
+holds a session (control or a service connection: ``XgvSimulator.trusted_addresses``), then the others,
 at most ``MAX_PER_ADDRESS_PER_TICK`` per address and ``MAX_UNTRUSTED_PER_TICK`` in all; the rest
 is dropped unread by the simulator and counted (``dropped``). A flood from other addresses
 therefore costs the controller at most one tick.
@@ -51,7 +51,7 @@ Datagram = tuple[bytes, tuple[str, int]]
 class Admission:
     """Which datagrams of one tick the simulator gets (module docstring); pure bookkeeping.
 
-    ``admit(batch, trusted)`` may be called several times per tick; ``new_tick()`` resets the
+    ``admit(batch, trusted)`` (a set of addresses) may be called several times per tick; ``new_tick()`` resets the
     per-tick counts. Trusted senders are capped per address only; the others also share
     ``MAX_UNTRUSTED_PER_TICK``. Order is kept within each group.
     """
@@ -65,24 +65,21 @@ class Admission:
         self.per_address.clear()
         self.untrusted = 0
 
-    def admit(self, batch: list[Datagram], trusted: Callable[[tuple[str, int]], bool]
-              ) -> list[Datagram]:
+    def admit(self, batch: list[Datagram], trusted: set[tuple[str, int]]) -> list[Datagram]:
         first: list[Datagram] = []
         rest: list[Datagram] = []
-        verdicts: dict[tuple[str, int], bool] = {}
         for datagram in batch:
             sender = datagram[1]
             count = self.per_address.get(sender, 0)
             if count >= MAX_PER_ADDRESS_PER_TICK:
                 continue
-            if sender not in verdicts:
-                verdicts[sender] = trusted(sender)
-            if not verdicts[sender]:
+            known = sender in trusted
+            if not known:
                 if self.untrusted >= MAX_UNTRUSTED_PER_TICK:
                     continue
                 self.untrusted += 1
             self.per_address[sender] = count + 1
-            (first if verdicts[sender] else rest).append(datagram)
+            (first if known else rest).append(datagram)
         self.dropped += len(batch) - len(first) - len(rest)
         return first + rest
 
@@ -166,7 +163,7 @@ class XgvServer:
                 batch = self._read(clock)
                 if batch and scenario_start is None:
                     scenario_start = clock() - start
-                for data, sender in self.admission.admit(batch, sim.trusted):
+                for data, sender in self.admission.admit(batch, sim.trusted_addresses()):
                     self._send(sim.receive(data, sender, clock() - start))
             now = clock() - start
             if now < next_tick_s:

@@ -14,6 +14,7 @@ from overdrive.jaus import (
     ControlResponse,
     CreateServiceConnection,
     Gear,
+    JausId,
     Propulsion,
     QueryComponentControl,
     QueryComponentStatus,
@@ -344,3 +345,72 @@ def test_discovery_queries_are_answered_as_openjaus_expects() -> None:
     # a node-level query at a component that is not the node manager is not answered
     assert peer.send(QueryConfiguration(query_field=QueryField.SUBSYSTEM)) == []
     assert sim.stats.unsupported == 1
+
+
+# --------------------------------------------------------------------------- peers (issue 18)
+
+def test_an_id_is_bound_to_its_address_and_spoofs_are_dropped() -> None:
+    from overdrive.jaus import (
+        CreateServiceConnection,
+        ReleaseComponentControl,
+        RequestComponentControl,
+        SetWrenchEffort,
+        TerminateServiceConnection,
+    )
+
+    sim = make_sim()
+    mail: dict = {}
+    real = Peer(sim, CLIENT, ("127.0.0.1", 40000), mail)
+    spoof = Peer(sim, CLIENT, ("127.0.0.1", 40001), mail)   # same id, another port
+    real.send(RequestComponentControl(authority=6))
+    real.send(CreateServiceConnection(command_code=0x4404, rate_hz=50.0), service=True)
+    attacks = [SetWrenchEffort.xgv(throttle_pct=95.9), ReleaseComponentControl(),
+               TerminateServiceConnection(command_code=0x4404, instance_id=1),
+               CreateServiceConnection(command_code=0x4404, rate_hz=100.0), QueryHeartbeatPulse()]
+    for attack in attacks:
+        assert spoof.send(attack) == []
+    assert sim.stats.spoofed == len(attacks)
+    assert sim.pd.controller == CLIENT and sim.actuation.throttle_pct == 0.0
+    assert [(c.client, c.address) for c in sim.connections] == [(CLIENT, real.address)]
+    assert sim.peers[CLIENT].address == real.address
+    real.step(20)
+    assert mail[spoof.address] == []                       # nothing redirected
+
+
+def test_silent_peers_expire_and_free_their_id_and_state() -> None:
+    from overdrive.jaus import CreateServiceConnection, RequestComponentControl
+    from overdrive.vehicle.xgv import MAX_PEERS, PEER_TIMEOUT_S
+
+    sim = make_sim()
+    mail: dict = {}
+    first = Peer(sim, CLIENT, ("127.0.0.1", 40000), mail)
+    first.send(RequestComponentControl(authority=6))
+    first.send(CreateServiceConnection(command_code=0x4404, rate_hz=10.0), service=True)
+    fakes = [Peer(sim, JausId(1, 9, 5 + i, 1), ("127.0.0.1", 41000 + i), mail)
+             for i in range(MAX_PEERS + 10)]
+    for fake in fakes:
+        fake.send(QueryHeartbeatPulse(), to=NM)
+    assert len(sim.peers) == MAX_PEERS and sim.stats.peers_refused == 11
+    first.step(int(PEER_TIMEOUT_S / 0.01) + 1)            # everyone silent for 5 s
+    assert sim.peers == {} and sim.connections == [] and sim.pd.controller is None
+    assert sim.stats.expired == 1
+    again = Peer(sim, CLIENT, ("127.0.0.1", 40002), mail)  # the id, from a new port
+    again.now_s = first.now_s
+    assert again.send(RequestComponentControl(authority=6))
+    assert sim.pd.controller == CLIENT and sim.peers[CLIENT].address == again.address
+
+
+def test_connections_per_peer_are_bounded() -> None:
+    from overdrive.jaus import ConfirmServiceConnection, CreateServiceConnection
+    from overdrive.vehicle.xgv import MAX_CONNECTIONS_PER_PEER, REPORTS
+
+    sim = make_sim()
+    peer = Peer(sim)
+    codes = [(cid, code) for cid, codes in REPORTS.items() for code in sorted(codes)]
+    for cid, code in codes:
+        peer.send(CreateServiceConnection(command_code=code, rate_hz=1.0),
+                  to=JausId(1, 1, int(cid), 1), service=True)
+    responses = [m.response for m in peer.of(ConfirmServiceConnection)]
+    assert len(codes) > MAX_CONNECTIONS_PER_PEER
+    assert responses.count(ServiceConnectionResponse.CREATED) == MAX_CONNECTIONS_PER_PEER
+    assert len(sim.connections) == MAX_CONNECTIONS_PER_PEER

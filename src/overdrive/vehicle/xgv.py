@@ -491,11 +491,12 @@ class XgvSimulator:
         peer.last_heard_s = now_s
         return True
 
-    def trusted(self, address: Address) -> bool:
-        """True when a peer at ``address`` controls a component or holds a service connection
-        (the runtime edge serves such addresses first under load)."""
-        return any(peer.address == address and self._holds_session(client)
-                   for client, peer in self.peers.items())
+    def trusted_addresses(self) -> set[Address]:
+        """The addresses of peers that control a component or hold a service connection (the
+        runtime edge serves them first under load). One pass, whatever the number of senders."""
+        holders = {c.controller for c in self.components.values()}
+        holders.update(conn.client for conn in self.connections)
+        return {peer.address for client, peer in self.peers.items() if client in holders}
 
     def _holds_session(self, client: JausId) -> bool:
         return (any(c.controller == client for c in self.components.values())
