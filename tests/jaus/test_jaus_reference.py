@@ -26,6 +26,7 @@ from overdrive.jaus import (
     Lights,
     Message,
     Motion,
+    Propulsion,
     QueryComponentAuthority,
     QueryComponentControl,
     QueryComponentStatus,
@@ -78,6 +79,7 @@ from overdrive.jaus import (
     message_types,
     xgv_id,
 )
+from overdrive.jaus.messages import gear_name
 
 PI = math.pi
 RANGE = {"byte": 255.0, "short": 65534.0, "ushort": 65535.0, "integer": 4294967294.0,
@@ -480,3 +482,19 @@ def test_decode_rejects_payload_not_matching_layout() -> None:
     wire[16] = 0x03  # presence now promises two int16 fields; only one follows
     with pytest.raises(JausDecodeError, match="presence vector"):
         decode(bytes(wire))
+
+
+def test_discrete_device_bytes_have_named_bits() -> None:
+    """Issue 19: the propulsion byte read as a number; its bits are named (reference §5)."""
+    message = decode(encode(SetDiscreteDevices(propulsion_flags=0x91, parking_horn_flags=0xFF,
+                                               gear=130)))
+    fields = message.fields_dict()
+    assert fields["propulsion"] == {
+        "main_power": True, "main_fuel": False, "auxiliary_fuel": False,
+        "auxiliary_power": False, "starter": True, "cold_start": False, "auto_start": False,
+        "auto_shutdown": True}
+    assert fields["parking_horn"] == {"parking_brake": True, "horn": True}
+    assert fields["gear_name"] == "reverse" and fields["propulsion_flags"] == 0x91
+    assert message.propulsion & Propulsion.STARTER  # type: ignore[attr-defined, operator]
+    assert [gear_name(g) for g in (0, 1, 127, 128, 129, 255)] == [
+        "park", "forward", "forward", "neutral", "reverse", "reverse"]

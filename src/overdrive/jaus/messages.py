@@ -944,6 +944,38 @@ class _DiscreteDevices(_LayoutMessage, frozen=True):
     gear: int | None = None
     transfer_case: int | None = None
 
+    @property
+    def propulsion(self) -> Propulsion | None:
+        """The propulsion byte's named bits (issue 19: it read as a bare number)."""
+        return None if self.propulsion_flags is None else Propulsion(self.propulsion_flags)
+
+    @property
+    def parking_horn(self) -> ParkingHorn | None:
+        return None if self.parking_horn_flags is None else ParkingHorn(self.parking_horn_flags)
+
+    def fields_dict(self) -> dict[str, Any]:
+        """The raw bytes, plus their named bits and the gear's name (``overdrive jaus decode``)."""
+        fields = super().fields_dict()
+        for name, flags in (("propulsion", self.propulsion), ("parking_horn", self.parking_horn)):
+            if flags is not None:
+                fields[name] = {_flag_name(bit): bool(flags & bit) for bit in type(flags)}
+        if self.gear is not None:
+            fields["gear_name"] = gear_name(self.gear)
+        return fields
+
+
+def _flag_name(bit: IntFlag) -> str:
+    return (bit.name or "").lower()
+
+
+def gear_name(code: int) -> str:
+    """Reference §5: 0 park, 1-127 forward, 128 neutral, 129-255 reverse."""
+    if code == Gear.PARK:
+        return "park"
+    if code == Gear.NEUTRAL:
+        return "neutral"
+    return "forward" if code < Gear.NEUTRAL else "reverse"
+
 
 @_message
 class SetDiscreteDevices(_DiscreteDevices, frozen=True):
