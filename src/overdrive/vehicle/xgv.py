@@ -107,6 +107,7 @@ from overdrive.jaus import (
 )
 from overdrive.jaus.judp import datagrams
 from overdrive.jaus.messages import LINK_STATUS_SHIFT
+from overdrive.jaus.multipacket import Reassembler
 from overdrive.messages import SafetyDevices, Topic
 from overdrive.servers.speed_control import LongitudinalController, gains_for
 from overdrive.vehicle.gate import GateLimits
@@ -365,6 +366,7 @@ class XgvSimulator:
         self.stats = XgvStats()
         self.peers: dict[JausId, PeerBinding] = {}
         self.connections: list[Connection] = []
+        self.reassembler = Reassembler()   # multi-packet messages (none of the XGV's needs it)
         self._instances: dict[tuple[int, int], int] = {}
         self._sequences: dict[tuple[JausId, JausId], int] = {}
         self.next_heartbeat_s = 0.0
@@ -433,7 +435,7 @@ class XgvSimulator:
         """Handle one datagram from ``sender``; returns the replies to send."""
         self.stats.datagrams += 1
         try:
-            messages = decode_datagram(data)
+            messages = decode_datagram(data, self.reassembler, now_s)
         except JausDecodeError:
             self.stats.malformed += 1
             return []
