@@ -3,7 +3,8 @@ the hash of the kit (tarball, Makefile, test tools), or the tests skip saying wh
 
 The kit is ``../shared/interop/openjaus`` seen from the project root (its README), or
 ``$OVERDRIVE_OPENJAUS_KIT``. The build goes to ``$OVERDRIVE_CACHE`` (default
-``$XDG_CACHE_HOME/overdrive``, else ``~/.cache/overdrive``) under ``openjaus-<hash>``; a lock
+``$XDG_CACHE_HOME/overdrive``, else ``~/.cache/overdrive``, else the temporary directory)
+under ``openjaus-<hash>``; a lock
 file makes concurrent sessions build it once. Nothing is written into the kit or the project.
 """
 
@@ -14,6 +15,7 @@ import hashlib
 import os
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -51,9 +53,14 @@ def build(target: str = "all") -> Path:
     tools = [t for t in ("make", "gcc", "g++", "ar") if shutil.which(t) is None]
     if tools:
         pytest.skip(f"cannot build OpenJAUS: {', '.join(tools)} not installed")
-    out = cache_root() / f"openjaus-{kit_hash(kit)}"
+    root = cache_root()
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError:   # a read-only home on some CI runners
+        root = Path(tempfile.gettempdir()) / "overdrive-cache"
+        root.mkdir(parents=True, exist_ok=True)
+    out = root / f"openjaus-{kit_hash(kit)}"
     stamp = out / f".built-{target}"
-    out.parent.mkdir(parents=True, exist_ok=True)
     with open(out.parent / f"{out.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not stamp.exists():
