@@ -15,7 +15,6 @@ import os
 import re
 import shutil
 import subprocess
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,8 +24,8 @@ import pytest
 from processes import started
 
 from overdrive.jaus import JausId, decode_datagram
-from overdrive.scenario import parse_scenario
 from overdrive.xgv_sim import XgvServer
+from tests.xgv.xgv_helpers import ready_scenario, serving
 
 pytestmark = pytest.mark.interop
 
@@ -57,19 +56,12 @@ class CountingServer(XgvServer):
 
 @pytest.fixture
 def xgv() -> Iterator[CountingServer]:
-    scenario = parse_scenario({"name": "nm", "start": "ready", "duration_s": 60}, "<test>")
     try:
-        server = CountingServer(*XGV, scenario)
+        server = CountingServer(*XGV, ready_scenario())
     except OSError as exc:
         pytest.skip(f"{XGV[0]}:{XGV[1]} is taken ({exc}); OpenJAUS needs the JUDP port 3794")
-    thread = threading.Thread(target=server.serve, kwargs={"duration_s": 60.0}, daemon=True)
-    thread.start()
-    try:
+    with serving(server):
         yield server
-    finally:
-        server.stop()
-        thread.join(timeout=5.0)
-        server.close()
 
 
 def test_node_manager_and_component_drive_xgv_sim(openjaus: Path, kit: Path,

@@ -8,7 +8,6 @@ import queue
 import statistics
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 
@@ -30,10 +29,10 @@ from overdrive.jaus import (
     ServiceConnectionResponse,
     SetWrenchEffort,
 )
-from overdrive.scenario import parse_scenario
 from overdrive.vehicle.xgv import MAX_PEERS, PEER_TIMEOUT_S
 from overdrive.xgv_sim import XgvServer
 from tests.interop.processes import started, xgv_sim
+from tests.xgv.xgv_helpers import ready_scenario, serving
 
 pytestmark = pytest.mark.wallclock
 
@@ -48,15 +47,8 @@ MAX_RTT_S = 0.050           # issue 18 acceptance: "stays under 50 ms"
 
 @pytest.fixture
 def xgv() -> Iterator[XgvServer]:
-    scenario = parse_scenario({"name": "udp", "start": "ready", "duration_s": 60}, "<test>")
-    with XgvServer("127.0.0.1", 0, scenario) as server:
-        thread = threading.Thread(target=server.serve, kwargs={"duration_s": 60.0}, daemon=True)
-        thread.start()
-        try:
-            yield server
-        finally:
-            server.stop()
-            thread.join(timeout=5.0)
+    with serving(XgvServer("127.0.0.1", 0, ready_scenario())) as server:
+        yield server
 
 
 def wait_for(inbox: queue.Queue[Received], kind: type, timeout_s: float = TIMEOUT_S) -> object:
