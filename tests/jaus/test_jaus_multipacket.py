@@ -121,3 +121,17 @@ def test_mutated_packet_streams_raise_only_decode_errors(seed: int) -> None:
         with contextlib.suppress(JausDecodeError):
             reassembler.feed(data, rng.random())
     assert len(reassembler.open) <= MAX_OPEN
+
+
+def test_packets_from_another_origin_neither_complete_nor_replace() -> None:
+    """Red team: a spoofer claiming the same ids from elsewhere cannot hijack a message."""
+    packets = split(BIG, packet_payload=300)
+    reassembler = Reassembler()
+    assert reassembler.feed(packets[0], 0.0, origin="real") is None
+    assert reassembler.feed(packets[0], 0.0, origin="spoofer") is None   # its own stream
+    for packet in packets[1:-1]:
+        assert reassembler.feed(packet, 0.0, origin="real") is None
+    with pytest.raises(JausDecodeError, match="no FIRST"):
+        reassembler.feed(packets[1], 0.0, origin="elsewhere")
+    assert reassembler.feed(packets[-1], 0.0, origin="real") == BIG
+    assert reassembler.dropped == 0

@@ -414,3 +414,16 @@ def test_connections_per_peer_are_bounded() -> None:
     assert len(codes) > MAX_CONNECTIONS_PER_PEER
     assert responses.count(ServiceConnectionResponse.CREATED) == MAX_CONNECTIONS_PER_PEER
     assert len(sim.connections) == MAX_CONNECTIONS_PER_PEER
+
+
+def test_a_datagram_packed_with_messages_costs_at_most_eight_dispatches() -> None:
+    """Red team: 200 queries in one 4 kB datagram were 200 dispatches (and replies)."""
+    from overdrive.jaus import Header, encode_datagram
+    from overdrive.vehicle.xgv import MAX_MESSAGES_PER_DATAGRAM
+
+    sim = make_sim()
+    query = QueryHeartbeatPulse(header=Header(destination=NM, source=CLIENT))
+    datagram = encode_datagram([query] * 200)
+    replies = sim.receive(datagram, ("127.0.0.1", 40000), 0.0)
+    assert len(replies) == MAX_MESSAGES_PER_DATAGRAM == 8
+    assert sim.stats.excess == 192 and sim.stats.messages == 8

@@ -111,18 +111,27 @@ def split(data: bytes | bytearray | memoryview) -> list[bytes]:
 
 
 def decode_datagram(data: bytes | bytearray | memoryview,
-                    reassembler: Reassembler | None = None, now_s: float = 0.0) -> list[Message]:
+                    reassembler: Reassembler | None = None, now_s: float = 0.0,
+                    origin: object = None) -> list[Message]:
     """Every message of a datagram; raises :class:`JausDecodeError` (only) if any is malformed.
 
     Multi-packet packets are refused unless a ``reassembler`` is given: then they go to it and
-    a message they complete is returned in their place (``now_s`` times them out).
+    a message they complete is returned in their place (``now_s`` times them out; ``origin``,
+    e.g. the sender's address, keeps different senders' packets apart).
     """
+    return decode_messages(split(data), reassembler, now_s, origin)
+
+
+def decode_messages(raws: Iterable[bytes], reassembler: Reassembler | None = None,
+                    now_s: float = 0.0, origin: object = None) -> list[Message]:
+    """:func:`decode_datagram` on messages already :func:`split` (a receiver can bound how
+    many of a datagram's messages it decodes)."""
     messages = []
-    for index, raw in enumerate(split(data)):
+    for index, raw in enumerate(raws):
         try:
             if reassembler is None:
                 messages.append(decode(raw))
-            elif (message := reassembler.feed(raw, now_s)) is not None:
+            elif (message := reassembler.feed(raw, now_s, origin)) is not None:
                 messages.append(message)
         except JausDecodeError as exc:
             raise JausDecodeError(f"message {index + 1}: {exc}") from None

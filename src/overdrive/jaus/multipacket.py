@@ -3,7 +3,7 @@
 A message whose payload exceeds one packet's 4080 bytes travels as packets flagged FIRST, then
 NORMAL ones, then LAST, with consecutive sequence numbers (wrapping at 65536); a packet sent
 again carries RETRANSMITTED and replaces the one with its sequence number. :class:`Reassembler`
-joins them per (source, destination, command code, experimental flag) and refuses, with a
+joins them per (origin, source, destination, command code, experimental flag) and refuses, with a
 :class:`JausDecodeError` saying why, what cannot be joined: a NORMAL/LAST/RETRANSMITTED packet
 with no FIRST, a sequence number outside the message, a message larger than
 ``MAX_MESSAGE_SIZE`` or ``MAX_PACKETS``, too many messages in progress (``MAX_OPEN``). Messages not completed within
@@ -70,7 +70,7 @@ class _Open:
     size: int = 0
 
 
-Key = tuple[object, object, int, bool]
+Key = tuple[object, object, object, int, bool]
 
 
 class Reassembler:
@@ -86,15 +86,18 @@ class Reassembler:
             del self.open[key]
             self.dropped += 1
 
-    def feed(self, raw: bytes, now_s: float) -> Message | None:
-        """The message ``raw`` completes (a SINGLE one at once), or None while incomplete."""
+    def feed(self, raw: bytes, now_s: float, origin: object = None) -> Message | None:
+        """The message ``raw`` completes (a SINGLE one at once), or None while incomplete.
+
+        ``origin`` (e.g. the sender's address) is part of the key, so packets claiming the same
+        ids from another sender can neither complete nor replace a message in progress."""
         header, code, experimental, size = decode_header(raw)
         if header.data_flag == DataFlag.SINGLE:
             return decode(raw)
         if len(raw) != HEADER_SIZE + size:
             raise JausDecodeError(
                 f"wrong length: header says {size} payload bytes, got {len(raw) - HEADER_SIZE}")
-        key: Key = (header.source, header.destination, code, experimental)
+        key: Key = (origin, header.source, header.destination, code, experimental)
         flag = header.data_flag
         if flag == DataFlag.FIRST:
             self.expire(now_s)

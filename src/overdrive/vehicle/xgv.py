@@ -103,9 +103,8 @@ from overdrive.jaus import (
     TerminateServiceConnection,
     XgvComponent,
     XgvSecondaryStatus,
-    decode_datagram,
 )
-from overdrive.jaus.judp import datagrams
+from overdrive.jaus.judp import datagrams, decode_messages, split
 from overdrive.jaus.messages import LINK_STATUS_SHIFT
 from overdrive.jaus.multipacket import Reassembler
 from overdrive.messages import SafetyDevices, Topic
@@ -148,6 +147,9 @@ CURVATURE_TRIM_MIN_MPS: Final = 1.0    # curvature trim only where yaw rate / sp
 MAX_PEERS: Final = 64                  # per-source state bound (issue 18): a real setup has a
                                        # handful of client ids; more are refused and counted
 MAX_CONNECTIONS: Final = 256           # all service connections (instance ids are one byte)
+MAX_MESSAGES_PER_DATAGRAM: Final = 8  # reference §2: "one public XGV client packs up to 5";
+                                       # the rest of a longer datagram is dropped (``excess``):
+                                       # 200 messages in one datagram cost 200 dispatches
 MAX_CONNECTIONS_PER_PEER: Final = 16   # one client: the overdrive client opens 6, ojcmpt 3
 PEER_TIMEOUT_S: Final = 5.0            # a peer silent this long (5 heartbeat periods, reference
                                        # §2) loses its service connections and control, and its
@@ -269,7 +271,7 @@ class XgvStats:
     """Counters; the Error Manager reports them (Report Error Count, in this order)."""
 
     FIELDS = ("malformed", "ignored_no_control", "unsupported", "invalid", "unroutable",
-              "datagrams", "messages", "spoofed", "peers_refused", "expired")
+              "datagrams", "messages", "spoofed", "peers_refused", "expired", "excess")
 
     def __init__(self) -> None:
         for name in self.FIELDS:
@@ -435,7 +437,11 @@ class XgvSimulator:
         """Handle one datagram from ``sender``; returns the replies to send."""
         self.stats.datagrams += 1
         try:
-            messages = decode_datagram(data, self.reassembler, now_s)
+            raws = split(data)
+            if len(raws) > MAX_MESSAGES_PER_DATAGRAM:
+                self.stats.excess += len(raws) - MAX_MESSAGES_PER_DATAGRAM
+                raws = raws[:MAX_MESSAGES_PER_DATAGRAM]
+            messages = decode_messages(raws, self.reassembler, now_s, sender)
         except JausDecodeError:
             self.stats.malformed += 1
             return []
