@@ -15,6 +15,10 @@
 Access control: a component is controlled by one client at a time; a request of higher
 authority takes it (the loser gets Reject Component Control); commands from anyone else are
 ignored and counted. Component status, service connections and queries follow reference §4.
+Each client id is bound to the UDP address it first spoke from; messages claiming it from
+elsewhere are dropped and counted, and a peer silent for ``PEER_TIMEOUT_S`` loses its
+connections and control (issue 18, docs/xgv.md). Discovery queries (Identification,
+Configuration, Services, Component Authority) are answered as an OpenJAUS node manager expects.
 The vehicle itself is ``VehicleSim`` (gate, seed-000 safety behaviour, plant, sensors),
 driven by the commands of whoever holds the Primitive Driver; its safety mode includes the
 control/ready-mode software pause (``VehicleSim.software_ready``).
