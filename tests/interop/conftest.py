@@ -53,6 +53,9 @@ def build(target: str = "all") -> Path:
     tools = [t for t in ("make", "gcc", "g++", "ar") if shutil.which(t) is None]
     if tools:
         pytest.skip(f"cannot build OpenJAUS: {', '.join(tools)} not installed")
+    if target == "vsim" and not _has_header("ncurses.h"):
+        pytest.skip("cannot build ojVehicleSim: the ncurses headers are not installed "
+                    "(Debian/Ubuntu: apt-get install libncurses-dev)")
     root = cache_root()
     try:
         root.mkdir(parents=True, exist_ok=True)
@@ -72,6 +75,18 @@ def build(target: str = "all") -> Path:
                             f"\n{result.stderr[-3000:]}")
             stamp.touch()
     return out
+
+
+def _has_header(name: str) -> bool:
+    probe = subprocess.run(["gcc", "-E", "-x", "c", "-"], input=f"#include <{name}>\n",
+                           capture_output=True, text=True, check=False)
+    return probe.returncode == 0
+
+
+@pytest.fixture(scope="session")
+def openjaus_vsim() -> Path:
+    """The build directory with ojVehicleSim too (needs the ncurses headers)."""
+    return build("vsim")
 
 
 @pytest.fixture(scope="session")

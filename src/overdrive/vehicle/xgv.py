@@ -580,6 +580,8 @@ class XgvSimulator:
             if (cid == XgvComponent.MOTION_PROFILE_DRIVER and self.pd.controller == comp.jaus_id
                     and self.pd.status == ComponentStatus.EMERGENCY):
                 self.pd.status = ComponentStatus.STANDBY
+        elif isinstance(m, ReportHeartbeatPulse):
+            pass        # a client's node manager saying it is alive (docs/xgv.md): noted above
         elif cid not in CONTROLLABLE:
             self.stats.unsupported += 1
         elif not controlled_by_sender:
