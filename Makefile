@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench clean coverage-gate
+.PHONY: run test lint bench clean coverage-gate interop
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -25,9 +25,15 @@ SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdriv
 SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_monitor.py tests/safety/test_watchdog.py \
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py
 
+# Wall-clock and OpenJAUS interop tests (real processes, sockets, fixed ports) run serially
+# after the parallel suite; the interop ones build OpenJAUS once into ~/.cache/overdrive
+# (tests/interop/conftest.py) and skip, saying why, without ../shared/interop/openjaus.
 test: lint
-	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock"
-	$(PY) -m pytest -p no:cacheprovider -m wallclock
+	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock and not interop"
+	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
+
+interop: $(STAMP)
+	$(PY) -m pytest -p no:cacheprovider -m interop -rs
 	@$(MAKE) --no-print-directory coverage-gate
 
 coverage-gate: $(STAMP)

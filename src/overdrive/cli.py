@@ -216,7 +216,8 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
         click.echo(f"xgv-sim: JAUS/JUDP on {bound[0]}:{bound[1]} (subsystem 1, node 1)", err=True)
         with contextlib.suppress(KeyboardInterrupt):
             server.serve(duration_s)
-    click.echo(f"xgv-sim: {server.simulator.stats}", err=True)
+    click.echo(f"xgv-sim: {server.simulator.stats}, dropped over input bounds "
+               f"{server.admission.dropped}", err=True)
 
 
 @main.command()

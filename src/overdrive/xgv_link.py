@@ -7,7 +7,8 @@ this module carries their datagrams and puts them on the bus:
   for ``interface: jaus``) uses two real UDP sockets on 127.0.0.1 with ephemeral ports;
   ``"memory"`` hands the same bytes over in memory (``interface: embedded`` with
   ``control: motion-profile``). Runs stay deterministic: each end drains exactly the datagrams
-  the other sent (waiting for loopback delivery if needed), so nothing depends on timing. The
+  the other sent (waiting for loopback delivery if needed), so nothing depends on timing, and
+  takes datagrams only from the other end's address (others are dropped and counted). The
   scenario's faults on channel ``jaus`` (drop, delay, duplicate, reorder) act on the datagrams.
 - ``UdpPort``: one non-blocking socket towards a remote XGV (``overdrive drive``).
 - Nodes, in tick order: ``XgvSimNode`` ("xgv": the simulated XGV; it also publishes what an
@@ -62,6 +63,7 @@ class LoopbackLink:
         self.expected = {"xgv": 0, "client": 0}
         self.received = {"xgv": 0, "client": 0}
         self.lost = 0
+        self.foreign = 0        # datagrams from any address but the other end: dropped
         self.closed = False
 
     def _open(self) -> None:
@@ -116,19 +118,24 @@ class LoopbackLink:
             self.received[side] += len(got)
             return got
         sock = self.sockets[side]
+        peer = self.addresses[_TO[side]]
         got = []
-        while self.received[side] < self.expected[side]:
+        while True:
             try:
                 data, sender = sock.recvfrom(RECEIVE_BUFFER)
             except BlockingIOError:
+                if self.received[side] >= self.expected[side]:
+                    return got
                 ready, _, _ = select.select([sock], [], [], DELIVERY_TIMEOUT_S)
                 if not ready:
                     self.lost += self.expected[side] - self.received[side]
                     self.received[side] = self.expected[side]
                 continue
+            if sender[:2] != peer:   # issue 18: only the other end of the run's link
+                self.foreign += 1
+                continue
             self.received[side] += 1
             got.append((data, sender[:2]))
-        return got
 
     def close(self) -> None:
         self.closed = True
@@ -148,6 +155,8 @@ class UdpPort:
 
     def _open(self) -> socket.socket:
         if self.sock is None:
+            # a host name resolved once, so replies can be matched against the address
+            self.remote = (socket.gethostbyname(self.remote[0]), self.remote[1])
             sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             try:
                 sock.bind(self.bind)
@@ -170,7 +179,7 @@ class UdpPort:
                 data, sender = sock.recvfrom(RECEIVE_BUFFER)
             except (BlockingIOError, ConnectionRefusedError):
                 return got
-            if sender[0] != self.remote[0]:
+            if sender[:2] != self.remote:   # issue 18: the XGV's address and port only
                 self.foreign += 1
                 continue
             got.append(data)

@@ -7,6 +7,13 @@ scenario, its vehicle, start, seed and world are used and its ``world`` and safe
 events (SafeStop, overrides, door, e-stop, errors, partial mode) and vehicle faults are played
 at their times; the scenario clock starts with the first datagram received, so a client
 started a little later (``overdrive drive``) sees the events when the scenario says.
+
+Bounded input (issue 18): each 10 ms tick reads at most ``MAX_READ_PER_TICK`` datagrams (for
+at most ``READ_BUDGET_S``), then hands the simulator first every datagram from an address that
+holds a session (control or a service connection: ``XgvSimulator.trusted_addresses``), then the others,
+at most ``MAX_PER_ADDRESS_PER_TICK`` per address and ``MAX_UNTRUSTED_PER_TICK`` in all; the rest
+is dropped unread by the simulator and counted (``dropped``). A flood from other addresses
+therefore costs the controller at most one tick.
 """
 
 from __future__ import annotations
@@ -28,6 +35,53 @@ from overdrive.vehicle.xgv import XgvSimulator
 
 PERIOD_S: Final = 0.01          # the vehicle's step, as in the lock-step runs
 RECEIVE_BUFFER: Final = 65535
+RECEIVE_QUEUE_BYTES: Final = 4 << 20    # kernel queue: a burst waits to be read (and dropped by
+                                        # the bounds below) instead of the kernel dropping the
+                                        # controller's datagrams; capped by net.core.rmem_max
+MAX_READ_PER_TICK: Final = 2000         # datagrams read per tick; reading and dropping is
+READ_BUDGET_S: Final = 0.004            # cheap, decoding is not (~20 us each): under 40 % of a tick
+MAX_PER_ADDRESS_PER_TICK: Final = 32    # a client sends ~3 per tick (command, devices, a query)
+MAX_UNTRUSTED_PER_TICK: Final = 20      # ~0.5 ms of decoding per tick for everyone else
+                                        # (2,000/s: discovery and new clients need a few)
+READ_CHUNK: Final = 64
+
+Datagram = tuple[bytes, tuple[str, int]]
+
+
+class Admission:
+    """Which datagrams of one tick the simulator gets (module docstring); pure bookkeeping.
+
+    ``admit(batch, trusted)`` (a set of addresses) may be called several times per tick; ``new_tick()`` resets the
+    per-tick counts. Trusted senders are capped per address only; the others also share
+    ``MAX_UNTRUSTED_PER_TICK``. Order is kept within each group.
+    """
+
+    def __init__(self) -> None:
+        self.per_address: dict[tuple[str, int], int] = {}
+        self.untrusted = 0
+        self.dropped = 0
+
+    def new_tick(self) -> None:
+        self.per_address.clear()
+        self.untrusted = 0
+
+    def admit(self, batch: list[Datagram], trusted: set[tuple[str, int]]) -> list[Datagram]:
+        first: list[Datagram] = []
+        rest: list[Datagram] = []
+        for datagram in batch:
+            sender = datagram[1]
+            count = self.per_address.get(sender, 0)
+            if count >= MAX_PER_ADDRESS_PER_TICK:
+                continue
+            known = sender in trusted
+            if not known:
+                if self.untrusted >= MAX_UNTRUSTED_PER_TICK:
+                    continue
+                self.untrusted += 1
+            self.per_address[sender] = count + 1
+            (first if known else rest).append(datagram)
+        self.dropped += len(batch) - len(first) - len(rest)
+        return first + rest
 
 
 class XgvServer:
@@ -43,6 +97,7 @@ class XgvServer:
         self.player = ScenarioPlayer(scenario) if scenario is not None else None
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_QUEUE_BYTES)
             self.sock.bind((host, port))
             self.sock.setblocking(False)
         except OSError:
@@ -50,6 +105,7 @@ class XgvServer:
             raise
         self._stop = threading.Event()
         self.send_errors = 0
+        self.admission = Admission()   # per-tick input bounds; .dropped counts the excess
 
     @property
     def address(self) -> tuple[str, int]:
@@ -75,6 +131,21 @@ class XgvServer:
             except OSError:
                 self.send_errors += 1
 
+    def _read(self, clock: Callable[[], float]) -> list[Datagram]:
+        """What is waiting, up to ``MAX_READ_PER_TICK`` datagrams or ``READ_BUDGET_S``."""
+        batch: list[Datagram] = []
+        append, recvfrom = batch.append, self.sock.recvfrom
+        deadline = clock() + READ_BUDGET_S
+        while len(batch) < MAX_READ_PER_TICK:
+            for _ in range(READ_CHUNK):   # the clock is read once per chunk: reads are ~1 us
+                try:
+                    append(recvfrom(RECEIVE_BUFFER))
+                except (BlockingIOError, ConnectionResetError):
+                    return batch
+            if clock() >= deadline:
+                break
+        return batch
+
     def serve(self, duration_s: float | None = None,
               clock: Callable[[], float] = time.monotonic) -> None:
         """Step every ``PERIOD_S`` and answer datagrams as they come, until stopped."""
@@ -89,20 +160,18 @@ class XgvServer:
             next_tick_s = tick * PERIOD_S
             ready, _, _ = select.select([self.sock], [], [], max(0.0, next_tick_s - now))
             if ready:
-                while True:
-                    try:
-                        data, sender = self.sock.recvfrom(RECEIVE_BUFFER)
-                    except (BlockingIOError, ConnectionResetError):
-                        break
-                    if scenario_start is None:
-                        scenario_start = clock() - start
-                    self._send(sim.receive(data, sender[:2], clock() - start))
+                batch = self._read(clock)
+                if batch and scenario_start is None:
+                    scenario_start = clock() - start
+                for data, sender in self.admission.admit(batch, sim.trusted_addresses()):
+                    self._send(sim.receive(data, sender, clock() - start))
             now = clock() - start
             if now < next_tick_s:
                 continue
             if self.player is not None and scenario_start is not None:
                 self._play(now - scenario_start)
             self._send(sim.step(now))
+            self.admission.new_tick()
             tick = max(tick + 1, int(now / PERIOD_S))
 
     def _play(self, scenario_s: float) -> None:

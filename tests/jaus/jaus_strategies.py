@@ -8,6 +8,7 @@ from typing import Any
 from hypothesis import strategies as st
 
 from overdrive.jaus import (
+    ConfigurationNode,
     Header,
     Horn,
     JausId,
@@ -16,8 +17,12 @@ from overdrive.jaus import (
     Message,
     Motion,
     ReportComponentControl,
+    ReportConfiguration,
     ReportErrorCount,
+    ReportIdentification,
+    ReportServices,
     ReportSignals,
+    Service,
     SetMotionProfile,
     SetSignals,
     UnknownMessage,
@@ -120,6 +125,25 @@ CUSTOM: dict[type[Message], st.SearchStrategy[Message]] = {
     ),
     ReportComponentControl: st.builds(
         ReportComponentControl, controller=ids, authority=u8, header=headers
+    ),
+    ReportIdentification: st.builds(
+        ReportIdentification, query_type=u8, authority=u8, type=st.integers(0, 0xFFFF),
+        identification=st.text(st.characters(min_codepoint=1, max_codepoint=255), max_size=79),
+        header=headers,
+    ),
+    ReportConfiguration: st.builds(
+        ReportConfiguration,
+        nodes=st.lists(st.builds(ConfigurationNode, u8, st.lists(st.tuples(u8, u8),
+                                                                 max_size=6).map(tuple)),
+                       max_size=4).map(tuple),
+        header=headers,
+    ),
+    ReportServices: st.builds(
+        ReportServices,
+        services=st.lists(st.builds(Service, st.integers(0, 0xFFFF), *(
+            st.lists(st.tuples(st.integers(0, 0xFFFF), st.integers(0, 0xFFFFFFFF)),
+                     max_size=5).map(tuple) for _ in range(2))), max_size=4).map(tuple),
+        header=headers,
     ),
 }
 

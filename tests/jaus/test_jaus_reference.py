@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from overdrive.jaus import (
     ActivateServiceConnection,
     ClearEmergency,
+    ConfigurationNode,
     ConfirmComponentControl,
     ConfirmServiceConnection,
     CreateServiceConnection,
@@ -25,24 +26,33 @@ from overdrive.jaus import (
     Lights,
     Message,
     Motion,
+    Propulsion,
+    QueryComponentAuthority,
     QueryComponentControl,
     QueryComponentStatus,
+    QueryConfiguration,
     QueryDiscreteDevices,
     QueryGlobalPose,
     QueryHeartbeatPulse,
+    QueryIdentification,
     QueryLocalPose,
+    QueryServices,
     QueryVelocityState,
     QueryWrenchEffort,
     RejectComponentControl,
     ReleaseComponentControl,
+    ReportComponentAuthority,
     ReportComponentControl,
     ReportComponentStatus,
+    ReportConfiguration,
     ReportCurvature,
     ReportDiscreteDevices,
     ReportErrorCount,
     ReportGlobalPose,
     ReportHeartbeatPulse,
+    ReportIdentification,
     ReportLocalPose,
+    ReportServices,
     ReportSignals,
     ReportVehicleMode,
     ReportVelocityState,
@@ -52,6 +62,7 @@ from overdrive.jaus import (
     Reset,
     Resume,
     ScaledInt,
+    Service,
     SetComponentAuthority,
     SetDiscreteDevices,
     SetEmergency,
@@ -68,6 +79,7 @@ from overdrive.jaus import (
     message_types,
     xgv_id,
 )
+from overdrive.jaus.messages import gear_name
 
 PI = math.pi
 RANGE = {"byte": 255.0, "short": 65534.0, "ushort": 65535.0, "integer": 4294967294.0,
@@ -163,15 +175,43 @@ def test_scaled_matches_reference_formula(kind: str, data: st.DataObject) -> Non
     assert ScaledInt(kind, lo, hi).to_raw(value) == ref(value, lo, hi, kind)  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize("kind", sorted(RANGE))
+@given(data=st.data())
+def test_decode_is_openjaus_formula(kind: str, data: st.DataObject) -> None:
+    """Decode is OpenJAUS's raw * scale + bias (README of shared/interop/openjaus), clamped."""
+    lo = data.draw(st.floats(-1e5, 1e5))
+    hi = lo + data.draw(st.floats(1e-3, 1e5))
+    scaled = ScaledInt(kind, lo, hi)  # type: ignore[arg-type]
+    bits = {"byte": 8, "short": 16, "ushort": 16, "integer": 32, "uinteger": 32}[kind]
+    signed = kind in ("short", "integer")
+    raw = data.draw(st.integers(-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed
+                    else st.integers(0, 2**bits - 1))
+    value_range = RANGE[kind]
+    openjaus = raw * ((hi - lo) / value_range) + ((hi + lo) / 2.0 if signed else lo)
+    assert scaled.from_raw(raw) == min(max(openjaus, lo), hi)
+
+
 @pytest.mark.parametrize("kind", ["short", "integer"])
-def test_negative_raws_decode_to_their_encoding_interval(kind: str) -> None:
-    """OpenJAUS's decoder gives raw*scale+bias; for raw < 0 that value re-encodes to raw+1.
-    The codec's decoder returns a value that re-encodes to raw (docs/jaus.md)."""
+def test_negative_raws_reencode_one_step_toward_zero(kind: str) -> None:
+    """With OpenJAUS's pair, raw n < 0 decodes to n * scale, which re-encodes to n + 1."""
     scaled = ScaledInt(kind, -100.0, 100.0)  # type: ignore[arg-type]
     for raw in (-1, -2, -327, -16384, -32765):
+        assert scaled.to_raw(scaled.from_raw(raw)) == raw + 1
+    for raw in (0, 1, 327, 16384, 32767):
         assert scaled.to_raw(scaled.from_raw(raw)) == raw
-        assert scaled.to_raw(scaled.from_raw_openjaus(raw)) == raw + 1
-        assert abs(scaled.from_raw(raw) - scaled.from_raw_openjaus(raw)) <= scaled.scale * 1.0001
+
+
+def test_short_is_exhaustively_characterised() -> None:
+    """Every int16 raw on the wrench range: the round trip of the docs, and the clamp only
+    where no encoder goes (-32768, -32767)."""
+    for raw in range(-32768, 32768):
+        value = PERCENT.from_raw(raw)
+        assert -100.0 <= value <= 100.0
+        again = PERCENT.to_raw(value)
+        if raw < -32766:
+            assert value == -100.0 and again == -32766
+        else:
+            assert again == (raw + 1 if raw < 0 else raw)
 
 
 # --------------------------------------------------------------------------- header
@@ -370,6 +410,23 @@ CASES: list[tuple[Message, int, bool, bytes]] = [
         ReportErrorCount(counts=(1, -2, 2**31 - 1)),
         0xE451, True, bytes([0, 0, 3]) + struct.pack("<3i", 1, -2, 2**31 - 1),
     ),
+    (QueryComponentAuthority(), 0x2001, False, b""),
+    (ReportComponentAuthority(authority=9), 0x4001, False, b"\x09"),
+    (QueryIdentification(query_field=3), 0x2B00, False, b"\x03"),
+    (
+        ReportIdentification(query_type=2, authority=0, type=10001, identification="XGV"),
+        0x4B00, False, struct.pack("<BBH", 2, 0, 10001) + b"XGV" + bytes(77),
+    ),
+    (QueryConfiguration(query_field=2), 0x2B01, False, b"\x02"),
+    (
+        ReportConfiguration(nodes=(ConfigurationNode(1, ((1, 1), (33, 1))),)),
+        0x4B01, False, bytes([1, 1, 2, 1, 1, 33, 1]),
+    ),
+    (QueryServices(), 0x2B03, False, b""),
+    (
+        ReportServices(services=(Service(0, ((0x0001, 0),), ((0x4202, 0),)),)),
+        0x4B03, False, bytes([1, 0, 0, 1, 1, 0, 0, 0, 0, 0, 1, 2, 0x42, 0, 0, 0, 0]),
+    ),
 ]  # fmt: skip
 
 
@@ -389,14 +446,14 @@ def test_payload_matches_reference(
     assert struct.unpack_from("<H", wire, 12)[0] == len(payload)
     again = decode(wire)
     assert type(again) is type(message)
-    assert encode(again) == wire
+    assert decode(encode(message)) == again
 
 
 def test_scaled_fields_decode_close_to_what_was_sent() -> None:
     again = decode(encode(SetWrenchEffort(**WRENCH)))
     for name, value in WRENCH.items():
         assert getattr(again, name) == pytest.approx(
-            value, abs=200 / 65534 if "propulsive" in name else 100 / 255
+            value, abs=1.5 * 200 / 65534 if "propulsive" in name else 0.5 * 100 / 255
         )
     pose = decode(encode(CASES[32][0]))
     assert isinstance(pose, ReportLocalPose)
@@ -425,3 +482,19 @@ def test_decode_rejects_payload_not_matching_layout() -> None:
     wire[16] = 0x03  # presence now promises two int16 fields; only one follows
     with pytest.raises(JausDecodeError, match="presence vector"):
         decode(bytes(wire))
+
+
+def test_discrete_device_bytes_have_named_bits() -> None:
+    """Issue 19: the propulsion byte read as a number; its bits are named (reference §5)."""
+    message = decode(encode(SetDiscreteDevices(propulsion_flags=0x91, parking_horn_flags=0xFF,
+                                               gear=130)))
+    fields = message.fields_dict()
+    assert fields["propulsion"] == {
+        "main_power": True, "main_fuel": False, "auxiliary_fuel": False,
+        "auxiliary_power": False, "starter": True, "cold_start": False, "auto_start": False,
+        "auto_shutdown": True}
+    assert fields["parking_horn"] == {"parking_brake": True, "horn": True}
+    assert fields["gear_name"] == "reverse" and fields["propulsion_flags"] == 0x91
+    assert message.propulsion & Propulsion.STARTER  # type: ignore[attr-defined, operator]
+    assert [gear_name(g) for g in (0, 1, 127, 128, 129, 255)] == [
+        "park", "forward", "forward", "neutral", "reverse", "reverse"]

@@ -14,6 +14,7 @@ from overdrive.jaus import (
     ControlResponse,
     CreateServiceConnection,
     Gear,
+    JausId,
     Propulsion,
     QueryComponentControl,
     QueryComponentStatus,
@@ -270,3 +271,159 @@ def test_timestamp_fields() -> None:
     stamp = jaus_timestamp(3723.456)
     assert (stamp.day, stamp.hour, stamp.minute, stamp.second, stamp.millisecond) == (1, 1, 2, 3, 456)
     assert msgspec.structs.astuple(jaus_timestamp(0.0)) == (1, 0, 0, 0, 0)
+
+
+def test_one_message_per_datagram_unless_packing_is_asked() -> None:
+    """OpenJAUS receivers keep only a datagram's first message (issue 19): never pack by default."""
+    from overdrive.jaus import CreateServiceConnection, ReportVelocityState, ReportWrenchEffort
+    from overdrive.jaus.judp import split
+
+    for packed in (False, True):
+        sim = make_sim(pack_datagrams=packed)
+        peer = Peer(sim)
+        for code in (ReportVelocityState.code, ReportWrenchEffort.code, 0x4002):
+            peer.send(CreateServiceConnection(command_code=code, rate_hz=100.0), service=True)
+        sizes = [len(split(data)) for data, _ in sim.step(0.0)]
+        assert sum(sizes) >= 3
+        assert (max(sizes) > 1) if packed else sizes == [1] * len(sizes)
+
+
+@pytest.mark.parametrize("rate_hz", [1.0, 5.0, 10.0, 12.5, 20.0, 33.0, 50.0, 100.0])
+def test_service_connection_reports_at_the_confirmed_rate(rate_hz: float) -> None:
+    """Issue 19: 10 Hz came out at 12.5 Hz. Over 10 s the count is the rate's, within one."""
+    from overdrive.jaus import (
+        ConfirmServiceConnection,
+        CreateServiceConnection,
+        ReportVelocityState,
+    )
+
+    sim = make_sim()
+    peer = Peer(sim)
+    peer.send(CreateServiceConnection(command_code=ReportVelocityState.code, rate_hz=rate_hz),
+              service=True)
+    confirmed = peer.of(ConfirmServiceConnection)[-1].rate_hz
+    got = []
+    for _ in range(10):    # a live client: heard from every second (PEER_TIMEOUT_S)
+        got += peer.step(100)
+        peer.send(QueryHeartbeatPulse(), to=NM)
+    count = sum(isinstance(m, ReportVelocityState) for m in got)
+    assert abs(count - 10.0 * confirmed) <= 1.0, (count, confirmed)
+
+
+def test_discovery_queries_are_answered_as_openjaus_expects() -> None:
+    """An OpenJAUS node manager asks Identification, Configuration and Services (issue 19)."""
+    from overdrive.jaus import (
+        QueryConfiguration,
+        QueryField,
+        QueryIdentification,
+        QueryServices,
+        ReportConfiguration,
+        ReportIdentification,
+        ReportServices,
+        encode,
+    )
+
+    sim = make_sim()
+    peer = Peer(sim)
+    (subsystem,) = peer.send(QueryIdentification(query_field=QueryField.SUBSYSTEM), to=NM)
+    (node,) = peer.send(QueryIdentification(query_field=QueryField.NODE), to=NM)
+    (component,) = peer.send(QueryIdentification(query_field=QueryField.COMPONENT))
+    assert isinstance(subsystem, ReportIdentification) and subsystem.query_type == 2
+    assert subsystem.header.source == NM and subsystem.header.destination == CLIENT
+    assert "XGV" in subsystem.identification
+    assert node.query_type == 3 and component.identification == "Primitive Driver"
+    (config,) = peer.send(QueryConfiguration(query_field=QueryField.SUBSYSTEM), to=NM)
+    assert isinstance(config, ReportConfiguration)
+    assert [n.node for n in config.nodes] == [1]
+    assert (33, 1) in config.nodes[0].components and (1, 1) in config.nodes[0].components
+    (services,) = peer.send(QueryServices())
+    assert isinstance(services, ReportServices)
+    assert [s.type for s in services.services] == [0, 33]
+    assert (0x0405, 0x0FFF) in services.services[1].inputs
+    assert (0x4405, 0x0FFF) in services.services[1].outputs
+    assert all(encode(m) for m in (subsystem, node, component, config, services))
+    # a node-level query at a component that is not the node manager is not answered
+    assert peer.send(QueryConfiguration(query_field=QueryField.SUBSYSTEM)) == []
+    assert sim.stats.unsupported == 1
+
+
+# --------------------------------------------------------------------------- peers (issue 18)
+
+def test_an_id_is_bound_to_its_address_and_spoofs_are_dropped() -> None:
+    from overdrive.jaus import (
+        CreateServiceConnection,
+        ReleaseComponentControl,
+        RequestComponentControl,
+        SetWrenchEffort,
+        TerminateServiceConnection,
+    )
+
+    sim = make_sim()
+    mail: dict = {}
+    real = Peer(sim, CLIENT, ("127.0.0.1", 40000), mail)
+    spoof = Peer(sim, CLIENT, ("127.0.0.1", 40001), mail)   # same id, another port
+    real.send(RequestComponentControl(authority=6))
+    real.send(CreateServiceConnection(command_code=0x4404, rate_hz=50.0), service=True)
+    attacks = [SetWrenchEffort.xgv(throttle_pct=95.9), ReleaseComponentControl(),
+               TerminateServiceConnection(command_code=0x4404, instance_id=1),
+               CreateServiceConnection(command_code=0x4404, rate_hz=100.0), QueryHeartbeatPulse()]
+    for attack in attacks:
+        assert spoof.send(attack) == []
+    assert sim.stats.spoofed == len(attacks)
+    assert sim.pd.controller == CLIENT and sim.actuation.throttle_pct == 0.0
+    assert [(c.client, c.address) for c in sim.connections] == [(CLIENT, real.address)]
+    assert sim.peers[CLIENT].address == real.address
+    real.step(20)
+    assert mail[spoof.address] == []                       # nothing redirected
+
+
+def test_silent_peers_expire_and_free_their_id_and_state() -> None:
+    from overdrive.jaus import CreateServiceConnection, RequestComponentControl
+    from overdrive.vehicle.xgv import MAX_PEERS, PEER_TIMEOUT_S
+
+    sim = make_sim()
+    mail: dict = {}
+    first = Peer(sim, CLIENT, ("127.0.0.1", 40000), mail)
+    first.send(RequestComponentControl(authority=6))
+    first.send(CreateServiceConnection(command_code=0x4404, rate_hz=10.0), service=True)
+    fakes = [Peer(sim, JausId(1, 9, 5 + i, 1), ("127.0.0.1", 41000 + i), mail)
+             for i in range(MAX_PEERS + 10)]
+    for fake in fakes:
+        fake.send(QueryHeartbeatPulse(), to=NM)
+    assert len(sim.peers) == MAX_PEERS and sim.stats.peers_refused == 11
+    first.step(int(PEER_TIMEOUT_S / 0.01) + 1)            # everyone silent for 5 s
+    assert sim.peers == {} and sim.connections == [] and sim.pd.controller is None
+    assert sim.stats.expired == 1
+    again = Peer(sim, CLIENT, ("127.0.0.1", 40002), mail)  # the id, from a new port
+    again.now_s = first.now_s
+    assert again.send(RequestComponentControl(authority=6))
+    assert sim.pd.controller == CLIENT and sim.peers[CLIENT].address == again.address
+
+
+def test_connections_per_peer_are_bounded() -> None:
+    from overdrive.jaus import ConfirmServiceConnection, CreateServiceConnection
+    from overdrive.vehicle.xgv import MAX_CONNECTIONS_PER_PEER, REPORTS
+
+    sim = make_sim()
+    peer = Peer(sim)
+    codes = [(cid, code) for cid, codes in REPORTS.items() for code in sorted(codes)]
+    for cid, code in codes:
+        peer.send(CreateServiceConnection(command_code=code, rate_hz=1.0),
+                  to=JausId(1, 1, int(cid), 1), service=True)
+    responses = [m.response for m in peer.of(ConfirmServiceConnection)]
+    assert len(codes) > MAX_CONNECTIONS_PER_PEER
+    assert responses.count(ServiceConnectionResponse.CREATED) == MAX_CONNECTIONS_PER_PEER
+    assert len(sim.connections) == MAX_CONNECTIONS_PER_PEER
+
+
+def test_a_datagram_packed_with_messages_costs_at_most_eight_dispatches() -> None:
+    """Red team: 200 queries in one 4 kB datagram were 200 dispatches (and replies)."""
+    from overdrive.jaus import Header, encode_datagram
+    from overdrive.vehicle.xgv import MAX_MESSAGES_PER_DATAGRAM
+
+    sim = make_sim()
+    query = QueryHeartbeatPulse(header=Header(destination=NM, source=CLIENT))
+    datagram = encode_datagram([query] * 200)
+    replies = sim.receive(datagram, ("127.0.0.1", 40000), 0.0)
+    assert len(replies) == MAX_MESSAGES_PER_DATAGRAM == 8
+    assert sim.stats.excess == 192 and sim.stats.messages == 8

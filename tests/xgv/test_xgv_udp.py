@@ -8,7 +8,6 @@ ephemeral port; the clients are ``JudpEndpoint``s on other ephemeral ports, one 
 from __future__ import annotations
 
 import queue
-import threading
 import time
 from collections.abc import Callable, Iterator
 
@@ -35,8 +34,8 @@ from overdrive.jaus import (
     SetWrenchEffort,
 )
 from overdrive.messages import SafetyDevices
-from overdrive.scenario import parse_scenario
 from overdrive.xgv_sim import XgvServer
+from tests.xgv.xgv_helpers import ready_scenario, serving
 
 TIMEOUT_S = 3.0
 PD = JausId(1, 1, 33, 1)
@@ -47,15 +46,8 @@ INTRUDER = JausId(1, 3, 4, 1)
 
 @pytest.fixture
 def xgv() -> Iterator[XgvServer]:
-    scenario = parse_scenario({"name": "udp", "start": "ready", "duration_s": 60}, "<test>")
-    with XgvServer("127.0.0.1", 0, scenario) as server:
-        thread = threading.Thread(target=server.serve, kwargs={"duration_s": 60.0}, daemon=True)
-        thread.start()
-        try:
-            yield server
-        finally:
-            server.stop()
-            thread.join(timeout=5.0)
+    with serving(XgvServer("127.0.0.1", 0, ready_scenario())) as server:
+        yield server
 
 
 @pytest.fixture

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import threading
+from collections.abc import Iterator
 from typing import Any
 
 import msgspec
@@ -58,3 +61,27 @@ class Peer:
 
     def of(self, cls: type[Message]) -> list[Any]:
         return [m for m in self.inbox if isinstance(m, cls)]
+
+
+READY_SCENARIO = {"name": "udp", "start": "ready", "duration_s": 60}
+SERVE_S = 60.0
+
+
+def ready_scenario() -> Any:
+    from overdrive.scenario import parse_scenario
+
+    return parse_scenario(READY_SCENARIO, "<test>")
+
+
+@contextlib.contextmanager
+def serving(server: Any) -> Iterator[Any]:
+    """``server`` (an ``XgvServer``) serving on a thread for at most ``SERVE_S``; stopped,
+    joined and closed on exit."""
+    thread = threading.Thread(target=server.serve, kwargs={"duration_s": SERVE_S}, daemon=True)
+    thread.start()
+    try:
+        yield server
+    finally:
+        server.stop()
+        thread.join(timeout=5.0)
+        server.close()

@@ -222,19 +222,22 @@ _isfinite = math.isfinite
 
 
 class ScaledInt:
-    """A real number carried as an integer on [lo, hi] (reference §3).
+    """A real number carried as an integer on [lo, hi] (reference §3), coded as OpenJAUS does.
 
-    Encoding is OpenJAUS's, in the same double-precision order: clamp, then
-    ``int((v - bias) / scale + 0.5)`` (``int`` truncates toward zero). NaN and infinities are
-    rejected with :class:`JausEncodeError` instead of clamped: on a drive-by-wire link a
+    Encode: clamp, then ``int((v - bias) / scale + 0.5)`` (``int`` truncates toward zero), in
+    the same double-precision order as OpenJAUS's ``jausXxxFromDouble``. NaN and infinities
+    are rejected with :class:`JausEncodeError` instead of clamped: on a drive-by-wire link a
     non-finite command is a bug upstream, never "full throttle".
 
-    Decoding returns the centre of the set of values the encoder maps to the raw number, so
-    ``encode(decode(raw)) == raw`` for every raw the encoder can produce. For raw >= 0 that is
-    OpenJAUS's ``raw * scale + bias``; because truncation toward zero shifts negative raws up
-    by one, for raw < 0 it is ``(raw - 1) * scale + bias``, one step further from zero than
-    OpenJAUS's decoder (:meth:`from_raw_openjaus`), whose value would re-encode to raw + 1.
-    Decoded values are clamped to [lo, hi].
+    Decode: OpenJAUS's ``raw * scale + bias`` (``jausXxxToDouble``), the same double for every
+    raw any encoder produces, then clamped to [lo, hi]. The clamp only touches raws no encoder
+    emits (int16 -32768/-32767 on a symmetric range, u32 0xFFFFFFFF): they are hostile or
+    broken input, and a value outside [lo, hi] is never handed on.
+
+    What round-trips (property-tested): ``to_raw(from_raw(n)) == n`` for n >= 0, and
+    ``n + 1`` for n < 0 (the truncation toward zero moves a negative value's raw up by one);
+    ``from_raw(to_raw(v))`` is within 0.5 step of the clamped ``v`` when ``v - bias >= 0``
+    and within 1.5 steps (never further from zero) below it.
     """
 
     __slots__ = ("bias", "fmt", "from_raw", "hi", "kind", "lo", "scale", "to_raw")
@@ -260,8 +263,8 @@ class ScaledInt:
             return int((value - bias) / scale + 0.5)
 
         def from_raw(raw: int) -> float:
-            """Decode one raw integer to the centre of its encoding interval, within [lo, hi]."""
-            value = (raw if raw >= 0 else raw - 1) * scale + bias
+            """Decode one raw integer (OpenJAUS's formula), clamped to [lo, hi]."""
+            value = raw * scale + bias
             if value < lo:
                 return lo
             if value > hi:
@@ -273,10 +276,6 @@ class ScaledInt:
 
     def __repr__(self) -> str:
         return f"ScaledInt({self.kind!r}, {self.lo!r}, {self.hi!r})"
-
-    def from_raw_openjaus(self, raw: int) -> float:
-        """OpenJAUS's decoder, ``raw * scale + bias``, for comparison with its logs."""
-        return raw * self.scale + self.bias
 
 
 # --------------------------------------------------------------------------- records and dispatch

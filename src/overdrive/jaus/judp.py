@@ -4,7 +4,13 @@ A datagram is the transport version byte ``0x01`` then one or more messages, eac
 4-byte frame header: header compression number (0), compression flags (0), and a big-endian
 u16 holding 16 + payload size. A frame length of 0 ends the datagram; anything after it is
 ignored. Header compression is not supported (non-zero compression bytes are rejected).
-Multi-packet messages are rejected rather than reassembled, as by :func:`codec.decode`.
+Multi-packet messages are rejected, as by :func:`codec.decode`, unless the receiver passes a
+:class:`~overdrive.jaus.multipacket.Reassembler` to :func:`decode_datagram`.
+
+Sending: one message per datagram by default (:func:`datagrams`), because OpenJAUS's receiver
+(``JudpInterface.cpp``, ``recvThreadRun``) takes only the first message of a datagram and drops
+the rest (shared/interop/openjaus README); packing (:func:`pack`) is an explicit option for
+peers known to accept it. Receiving accepts any number of messages per datagram.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from overdrive.jaus.codec import (
     decode,
     encode,
 )
+from overdrive.jaus.multipacket import Reassembler
 
 TRANSPORT_VERSION: Final = 0x01  # reference §2: "one byte 0x01 (transport version)"
 JUDP_PORT: Final = 3794  # reference §2: "port 3794"
@@ -103,12 +110,29 @@ def split(data: bytes | bytearray | memoryview) -> list[bytes]:
     return messages
 
 
-def decode_datagram(data: bytes | bytearray | memoryview) -> list[Message]:
-    """Every message of a datagram; raises :class:`JausDecodeError` (only) if any is malformed."""
+def decode_datagram(data: bytes | bytearray | memoryview,
+                    reassembler: Reassembler | None = None, now_s: float = 0.0,
+                    origin: object = None) -> list[Message]:
+    """Every message of a datagram; raises :class:`JausDecodeError` (only) if any is malformed.
+
+    Multi-packet packets are refused unless a ``reassembler`` is given: then they go to it and
+    a message they complete is returned in their place (``now_s`` times them out; ``origin``,
+    e.g. the sender's address, keeps different senders' packets apart).
+    """
+    return decode_messages(split(data), reassembler, now_s, origin)
+
+
+def decode_messages(raws: Iterable[bytes], reassembler: Reassembler | None = None,
+                    now_s: float = 0.0, origin: object = None) -> list[Message]:
+    """:func:`decode_datagram` on messages already :func:`split` (a receiver can bound how
+    many of a datagram's messages it decodes)."""
     messages = []
-    for index, raw in enumerate(split(data)):
+    for index, raw in enumerate(raws):
         try:
-            messages.append(decode(raw))
+            if reassembler is None:
+                messages.append(decode(raw))
+            elif (message := reassembler.feed(raw, now_s, origin)) is not None:
+                messages.append(message)
         except JausDecodeError as exc:
             raise JausDecodeError(f"message {index + 1}: {exc}") from None
     return messages
@@ -129,3 +153,11 @@ def pack(messages: Iterable[Message], max_size: int = MAX_DATAGRAM_SIZE) -> list
     if batch:
         datagrams.append(frame(batch))
     return datagrams
+
+
+def datagrams(messages: Iterable[Message], packed: bool = False) -> list[bytes]:
+    """The datagrams carrying ``messages`` in order: one each (the default, what OpenJAUS
+    sends and can receive), or as few as they fit in when ``packed``."""
+    if packed:
+        return pack(messages)
+    return [frame((encode(message),)) for message in messages]

@@ -2,7 +2,7 @@
 
 A layout is a list of ``(field name, Wire)``; :class:`FixedLayout` packs them all in order,
 :class:`PresenceLayout` packs a presence vector then the fields whose bit is set (bit i =
-field i, reference §5). Each layout compiles its encoder and decoder into generated
+field i, reference §5; undefined bits are ignored on decode). Each layout compiles its encoder and decoder into generated
 straight-line functions (one pair per presence vector for presence layouts) with the
 scaled-integer arithmetic of :class:`~overdrive.jaus.codec.ScaledInt` inlined: per-field
 calls were most of the cost of a Set Wrench Effort round trip, and the generated form is
@@ -103,11 +103,9 @@ class ScaledWire(Wire):
 
     def decode_source(self, var: str, ns: dict[str, Any], tag: str) -> list[str]:
         s = self.scaled
-        # ScaledInt.from_raw; raws of unsigned types are never negative
-        signed = s.kind in ("short", "integer")
-        step = f"({var} if {var} >= 0 else {var} - 1)" if signed else var
+        # ScaledInt.from_raw: OpenJAUS's raw * scale + bias, then the clamp
         return [
-            f"{var} = {step} * {s.scale!r}" + (f" + ({s.bias!r})" if s.bias else ""),
+            f"{var} = {var} * {s.scale!r}" + (f" + ({s.bias!r})" if s.bias else ""),
             f"if not {s.lo!r} <= {var} <= {s.hi!r}:",
             f"    {var} = {s.lo!r} if {var} < {s.lo!r} else {s.hi!r}",
         ]
@@ -295,15 +293,16 @@ class PresenceLayout:
             raise JausEncodeError(self.problem(values)) from None
 
     def decode(self, payload: bytes, what: str) -> tuple[Any, ...]:
-        """The field values, None where the presence vector leaves a field out."""
+        """The field values, None where the presence vector leaves a field out.
+
+        Presence-vector bits beyond the defined fields are masked off (not an error), so
+        re-encoding the record writes the defined bits only.
+        """
         if len(payload) < self.pv_size:
             raise JausDecodeError(f"{what}: payload of {len(payload)} bytes has no presence vector")
-        pv = payload[0] if self.pv_size == 1 else payload[0] | payload[1] << 8
-        if pv & ~self.valid_bits:
-            raise JausDecodeError(
-                f"{what}: presence vector 0x{pv:X} sets undefined bits "
-                f"(defined: 0x{self.valid_bits:X})"
-            )
+        # bits the message does not define are ignored, not refused: OpenJAUS sets all of
+        # them (0xFFFF / 0xFF) by default and accepts such messages (shared/interop README)
+        pv = (payload[0] if self.pv_size == 1 else payload[0] | payload[1] << 8) & self.valid_bits
         decoder = self._decoders.get(pv)
         if decoder is None:
             # compile only for payloads of the right length, so garbage does not fill the cache

@@ -576,6 +576,223 @@ class ReportHeartbeatPulse(_LayoutMessage, frozen=True):
     header: Header = FROM_NODE_MANAGER
 
 
+@_message
+class QueryComponentAuthority(_LayoutMessage, frozen=True):
+    """0x2001 (OpenJAUS's core services list it, jausService.c)."""
+
+    code = 0x2001
+    name = "query-component-authority"
+    layout = _EMPTY
+    header: Header = TO_PRIMITIVE_DRIVER
+
+
+@_message
+class ReportComponentAuthority(_LayoutMessage, frozen=True):
+    """0x4001: the component's authority (what Set Component Authority set)."""
+
+    code = 0x4001
+    name = "report-component-authority"
+    layout = _fixed(("authority", U8))
+    authority: int = 0
+    header: Header = FROM_PRIMITIVE_DRIVER
+
+
+# ----------------------------------------------------------------- dynamic configuration
+# Discovery, as OpenJAUS 3.3's node manager does it (libjaus dynamicConfiguration messages):
+# it queries Identification, then Configuration, then each component's Services.
+
+
+class QueryField(IntEnum):
+    """Query Identification's query field (OpenJAUS queryIdentificationMessage.h)."""
+
+    SYSTEM = 1
+    SUBSYSTEM = 2
+    NODE = 3
+    COMPONENT = 4
+
+
+@_message
+class QueryIdentification(_LayoutMessage, frozen=True):
+    """0x2B00: who are you (``query_field``: QueryField)."""
+
+    code = 0x2B00
+    name = "query-identification"
+    layout = _fixed(("query_field", U8))
+    query_field: int = QueryField.SUBSYSTEM
+    header: Header = TO_PRIMITIVE_DRIVER
+
+
+IDENTIFICATION_SIZE: Final = 80  # OpenJAUS JAUS_IDENTIFICATION_LENGTH_BYTES: NUL-padded text
+_IDENTIFICATION_HEAD: Final = struct.Struct("<BBH")  # query type, authority, type
+
+
+@_message
+class ReportIdentification(Message, frozen=True):
+    """0x4B00: ``identification`` text (at most 79 bytes, latin-1) and the JAUS ``type``."""
+
+    code = 0x4B00
+    name = "report-identification"
+    query_type: int = QueryField.SUBSYSTEM
+    authority: int = 0
+    type: int = 0
+    identification: str = ""
+    header: Header = FROM_NODE_MANAGER
+
+    def encode_payload(self) -> bytes:
+        try:
+            text = self.identification.encode("latin-1")
+        except (AttributeError, UnicodeEncodeError):
+            raise JausEncodeError("identification must be latin-1 text") from None
+        if len(text) >= IDENTIFICATION_SIZE or b"\0" in text:
+            raise JausEncodeError(f"identification must be < {IDENTIFICATION_SIZE} bytes, no NUL")
+        head = _IDENTIFICATION_HEAD.pack(_checked(U8, self.query_type),
+                                         _checked(U8, self.authority), _checked(U16, self.type))
+        return head + text.ljust(IDENTIFICATION_SIZE, b"\0")
+
+    @classmethod
+    def decode_payload(cls, payload: bytes, header: Header) -> Self:
+        size = _IDENTIFICATION_HEAD.size
+        if not size <= len(payload) <= size + IDENTIFICATION_SIZE:
+            raise JausDecodeError(f"{cls.name}: payload of {len(payload)} bytes, expected "
+                                  f"{size}..{size + IDENTIFICATION_SIZE}")
+        query_type, authority, kind = _IDENTIFICATION_HEAD.unpack_from(payload)
+        text = payload[size:].split(b"\0", 1)[0][: IDENTIFICATION_SIZE - 1]
+        return cls(query_type, authority, kind, text.decode("latin-1"), header)
+
+
+@_message
+class QueryConfiguration(_LayoutMessage, frozen=True):
+    """0x2B01: ``query_field`` 2 subsystem, 3 node (OpenJAUS queryConfigurationMessage.h)."""
+
+    code = 0x2B01
+    name = "query-configuration"
+    layout = _fixed(("query_field", U8))
+    query_field: int = QueryField.SUBSYSTEM
+    header: Header = TO_PRIMITIVE_DRIVER
+
+
+class ConfigurationNode(msgspec.Struct, frozen=True):
+    """One node of Report Configuration: its id and its (component, instance) pairs."""
+
+    node: int
+    components: tuple[tuple[int, int], ...] = ()
+
+
+def _counted(items: Any, what: str) -> int:
+    if not isinstance(items, tuple | list) or len(items) > 0xFF:
+        raise JausEncodeError(f"{what} must be a tuple of at most 255 items")
+    return len(items)
+
+
+class _Reader:
+    """Sequential little-endian reads with a decode error naming the message on overrun."""
+
+    __slots__ = ("offset", "payload", "what")
+
+    def __init__(self, payload: bytes, what: str) -> None:
+        self.payload, self.what, self.offset = payload, what, 0
+
+    def read(self, fmt: struct.Struct) -> tuple[Any, ...]:
+        if self.offset + fmt.size > len(self.payload):
+            raise JausDecodeError(f"{self.what}: payload of {len(self.payload)} bytes is truncated")
+        values = fmt.unpack_from(self.payload, self.offset)
+        self.offset += fmt.size
+        return values
+
+    def done(self) -> None:
+        if self.offset != len(self.payload):
+            raise JausDecodeError(f"{self.what}: {len(self.payload) - self.offset} bytes after "
+                                  "the last item")
+
+
+_B: Final = struct.Struct("<B")
+_BB: Final = struct.Struct("<BB")
+_SERVICE_MESSAGE: Final = struct.Struct("<HI")  # command code, presence vector
+
+
+@_message
+class ReportConfiguration(Message, frozen=True):
+    """0x4B01: the nodes of the subsystem and their components (OpenJAUS layout)."""
+
+    code = 0x4B01
+    name = "report-configuration"
+    nodes: tuple[ConfigurationNode, ...] = ()
+    header: Header = FROM_NODE_MANAGER
+
+    def encode_payload(self) -> bytes:
+        parts = [_B.pack(_counted(self.nodes, "nodes"))]
+        for node in self.nodes:
+            if not isinstance(node, ConfigurationNode):
+                raise JausEncodeError(f"nodes must hold ConfigurationNode records, got {node!r}")
+            parts.append(_BB.pack(_checked(U8, node.node),
+                                  _counted(node.components, "components")))
+            parts += [_BB.pack(_checked(U8, c), _checked(U8, i)) for c, i in node.components]
+        return b"".join(parts)
+
+    @classmethod
+    def decode_payload(cls, payload: bytes, header: Header) -> Self:
+        reader = _Reader(payload, cls.name)
+        nodes = []
+        for _ in range(reader.read(_B)[0]):
+            node, count = reader.read(_BB)
+            nodes.append(ConfigurationNode(node, tuple(reader.read(_BB) for _ in range(count))))
+        reader.done()
+        return cls(tuple(nodes), header)
+
+
+@_message
+class QueryServices(_LayoutMessage, frozen=True):
+    """0x2B03: which messages do you take and give."""
+
+    code = 0x2B03
+    name = "query-services"
+    layout = _EMPTY
+    header: Header = TO_PRIMITIVE_DRIVER
+
+
+class Service(msgspec.Struct, frozen=True):
+    """One service of Report Services: its JAUS type (0 core) and its input and output
+    messages as (command code, presence vector) pairs."""
+
+    type: int
+    inputs: tuple[tuple[int, int], ...] = ()
+    outputs: tuple[tuple[int, int], ...] = ()
+
+
+@_message
+class ReportServices(Message, frozen=True):
+    """0x4B03: the component's services (OpenJAUS layout)."""
+
+    code = 0x4B03
+    name = "report-services"
+    services: tuple[Service, ...] = ()
+    header: Header = FROM_PRIMITIVE_DRIVER
+
+    def encode_payload(self) -> bytes:
+        parts = [_B.pack(_counted(self.services, "services"))]
+        for service in self.services:
+            if not isinstance(service, Service):
+                raise JausEncodeError(f"services must hold Service records, got {service!r}")
+            parts.append(struct.pack("<H", _checked(U16, service.type)))
+            for messages in (service.inputs, service.outputs):
+                parts.append(_B.pack(_counted(messages, "service messages")))
+                parts += [_SERVICE_MESSAGE.pack(_checked(U16, c), _checked(U32, pv))
+                          for c, pv in messages]
+        return b"".join(parts)
+
+    @classmethod
+    def decode_payload(cls, payload: bytes, header: Header) -> Self:
+        reader = _Reader(payload, cls.name)
+        services = []
+        for _ in range(reader.read(_B)[0]):
+            (kind,) = reader.read(struct.Struct("<H"))
+            inputs = tuple(reader.read(_SERVICE_MESSAGE) for _ in range(reader.read(_B)[0]))
+            outputs = tuple(reader.read(_SERVICE_MESSAGE) for _ in range(reader.read(_B)[0]))
+            services.append(Service(kind, inputs, outputs))
+        reader.done()
+        return cls(tuple(services), header)
+
+
 # =========================================================================== §5 platform messages
 
 _WRENCH_FIELDS: Final = (
@@ -726,6 +943,38 @@ class _DiscreteDevices(_LayoutMessage, frozen=True):
     parking_horn_flags: int | None = None
     gear: int | None = None
     transfer_case: int | None = None
+
+    @property
+    def propulsion(self) -> Propulsion | None:
+        """The propulsion byte's named bits (issue 19: it read as a bare number)."""
+        return None if self.propulsion_flags is None else Propulsion(self.propulsion_flags)
+
+    @property
+    def parking_horn(self) -> ParkingHorn | None:
+        return None if self.parking_horn_flags is None else ParkingHorn(self.parking_horn_flags)
+
+    def fields_dict(self) -> dict[str, Any]:
+        """The raw bytes, plus their named bits and the gear's name (``overdrive jaus decode``)."""
+        fields = super().fields_dict()
+        for name, flags in (("propulsion", self.propulsion), ("parking_horn", self.parking_horn)):
+            if flags is not None:
+                fields[name] = {_flag_name(bit): bool(flags & bit) for bit in type(flags)}
+        if self.gear is not None:
+            fields["gear_name"] = gear_name(self.gear)
+        return fields
+
+
+def _flag_name(bit: IntFlag) -> str:
+    return (bit.name or "").lower()
+
+
+def gear_name(code: int) -> str:
+    """Reference §5: 0 park, 1-127 forward, 128 neutral, 129-255 reverse."""
+    if code == Gear.PARK:
+        return "park"
+    if code == Gear.NEUTRAL:
+        return "neutral"
+    return "forward" if code < Gear.NEUTRAL else "reverse"
 
 
 @_message
@@ -1163,8 +1412,7 @@ class _Signals(Message, frozen=True):
         if len(payload) < _SIGNALS_HEAD.size:
             raise JausDecodeError(f"{cls.name}: payload of {len(payload)} bytes is truncated")
         version, presence = _SIGNALS_HEAD.unpack_from(payload)
-        if presence & ~_SIGNALS_VALID_BITS:
-            raise JausDecodeError(f"{cls.name}: presence 0x{presence:02X} sets undefined bits")
+        presence &= _SIGNALS_VALID_BITS  # undefined bits ignored, as for every presence vector
         expected = (
             _SIGNALS_HEAD.size
             + (presence & 1)

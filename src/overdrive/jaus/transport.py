@@ -26,7 +26,7 @@ import msgspec
 
 from overdrive.jaus.addresses import JausId
 from overdrive.jaus.codec import Header, JausDecodeError, Message
-from overdrive.jaus.judp import JUDP_PORT, MAX_DATAGRAM_SIZE, decode_datagram, pack
+from overdrive.jaus.judp import JUDP_PORT, datagrams, decode_datagram
 
 _log = logging.getLogger(__name__)
 
@@ -239,9 +239,11 @@ class JudpEndpoint:
         *,
         destination: JausId | None = None,
         source: JausId | None = None,
+        packed: bool = False,
         **header_changes: Any,
     ) -> list[Message]:
-        """Send several messages packed into as few datagrams as they fit (reference §2)."""
+        """Send several messages, one per datagram, or as few datagrams as they fit in when
+        ``packed`` (reference §2; only for peers known to read past the first message)."""
         sent = [
             self.address_message(m, destination=destination, source=source, **header_changes)
             for m in messages
@@ -253,7 +255,7 @@ class JudpEndpoint:
             raise LookupError(
                 f"no address for {sent[0].header.destination}; pass to= or add_peer()"
             )
-        for datagram in pack(sent, MAX_DATAGRAM_SIZE):
+        for datagram in datagrams(sent, packed):
             self._sock.sendto(datagram, target)
             self.stats.datagrams_sent += 1
         return sent

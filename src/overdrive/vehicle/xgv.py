@@ -15,6 +15,10 @@
 Access control: a component is controlled by one client at a time; a request of higher
 authority takes it (the loser gets Reject Component Control); commands from anyone else are
 ignored and counted. Component status, service connections and queries follow reference §4.
+Each client id is bound to the UDP address it first spoke from; messages claiming it from
+elsewhere are dropped and counted, and a peer silent for ``PEER_TIMEOUT_S`` loses its
+connections and control (issue 18, docs/xgv.md). Discovery queries (Identification,
+Configuration, Services, Component Authority) are answered as an OpenJAUS node manager expects.
 The vehicle itself is ``VehicleSim`` (gate, seed-000 safety behaviour, plant, sensors),
 driven by the commands of whoever holds the Primitive Driver; its safety mode includes the
 control/ready-mode software pause (``VehicleSim.software_ready``).
@@ -42,6 +46,7 @@ from overdrive.jaus import (
     ActivateServiceConnection,
     ClearEmergency,
     ComponentStatus,
+    ConfigurationNode,
     ConfirmComponentControl,
     ConfirmServiceConnection,
     ControlResponse,
@@ -53,24 +58,33 @@ from overdrive.jaus import (
     JausTimestamp,
     Message,
     Propulsion,
+    QueryComponentAuthority,
     QueryComponentControl,
     QueryComponentStatus,
+    QueryConfiguration,
     QueryDiscreteDevices,
+    QueryField,
     QueryGlobalPose,
     QueryHeartbeatPulse,
+    QueryIdentification,
     QueryLocalPose,
+    QueryServices,
     QueryVelocityState,
     QueryWrenchEffort,
     RejectComponentControl,
     ReleaseComponentControl,
+    ReportComponentAuthority,
     ReportComponentControl,
     ReportComponentStatus,
+    ReportConfiguration,
     ReportCurvature,
     ReportDiscreteDevices,
     ReportErrorCount,
     ReportGlobalPose,
     ReportHeartbeatPulse,
+    ReportIdentification,
     ReportLocalPose,
+    ReportServices,
     ReportSignals,
     ReportVehicleMode,
     ReportVelocityState,
@@ -79,6 +93,7 @@ from overdrive.jaus import (
     RequestComponentControl,
     Reset,
     Resume,
+    Service,
     ServiceConnectionResponse,
     SetComponentAuthority,
     SetDiscreteDevices,
@@ -92,10 +107,10 @@ from overdrive.jaus import (
     TerminateServiceConnection,
     XgvComponent,
     XgvSecondaryStatus,
-    decode_datagram,
 )
-from overdrive.jaus.judp import pack
+from overdrive.jaus.judp import datagrams, decode_messages, split
 from overdrive.jaus.messages import LINK_STATUS_SHIFT
+from overdrive.jaus.multipacket import Reassembler
 from overdrive.messages import SafetyDevices, Topic
 from overdrive.safety.gate import GateLimits
 from overdrive.servers.speed_control import LongitudinalController, gains_for
@@ -122,6 +137,8 @@ Outgoing = list[tuple[bytes, Address]]
 
 HEARTBEAT_PERIOD_S: Final = 1.0        # reference §2: Report Heartbeat Pulse "at about 1 Hz"
 MAX_REPORT_RATE_HZ: Final = 100.0      # the simulator steps at 100 Hz: faster is granted at this
+STEP_TOLERANCE_S: Final = 0.005        # half the 10 ms step (xgv_sim.PERIOD_S): a report due
+                                       # within it goes out in this step
 COMMAND_TIMEOUT_S: Final = 0.5         # wrench mode: no Set Wrench Effort for this long -> error pause
                                        # (a dead client must not leave the throttle open; our choice)
 LAPSE_DECEL_MPS2: Final = PAUSE_DECEL_MPS2  # a lapsed motion profile stops like a pause (seed 000)
@@ -131,8 +148,16 @@ CURVATURE_DEADBAND_1PM: Final = 1e-4  # two steps of the u16 atan(curvature) fie
 FULL_BRAKE_FRACTION: Final = 0.99     # a stop at >= this x the preset's full-brake decel: 100 %
 STOPPED_MPS: Final = 0.05              # MPD standstill (plant shift threshold, as the driving module)
 CURVATURE_TRIM_MIN_MPS: Final = 1.0    # curvature trim only where yaw rate / speed is meaningful
-MAX_PEERS: Final = 64                  # bounds memory under garbage source ids
-MAX_CONNECTIONS: Final = 256
+MAX_PEERS: Final = 64                  # per-source state bound (issue 18): a real setup has a
+                                       # handful of client ids; more are refused and counted
+MAX_CONNECTIONS: Final = 256           # all service connections (instance ids are one byte)
+MAX_MESSAGES_PER_DATAGRAM: Final = 8  # reference §2: "one public XGV client packs up to 5";
+                                       # the rest of a longer datagram is dropped (``excess``):
+                                       # 200 messages in one datagram cost 200 dispatches
+MAX_CONNECTIONS_PER_PEER: Final = 16   # one client: the overdrive client opens 6, ojcmpt 3
+PEER_TIMEOUT_S: Final = 5.0            # a peer silent this long (5 heartbeat periods, reference
+                                       # §2) loses its service connections and control, and its
+                                       # id is free to come back from another address
 ORIGIN_DEG: Final = (37.2296, -80.4139)  # Global Pose datum (Blacksburg, VA); any point works
 EARTH_RADIUS_M: Final = 6_378_137.0    # WGS-84 equatorial radius (flat-earth projection)
 POSITION_RMS_M: Final = 0.02           # reported accuracy: the preset's RTK-grade GPS noise
@@ -174,6 +199,27 @@ REPORTS: Final[dict[int, frozenset[int]]] = {
 
 CONTROLLABLE: Final = frozenset({XgvComponent.PRIMITIVE_DRIVER, XgvComponent.MOTION_PROFILE_DRIVER,
                                  XgvComponent.SIGNALS_DRIVER})
+# Discovery (issue 19): what an OpenJAUS node manager asks of every component it finds. The
+# names are ours; types and authority are 0 as OpenJAUS's own node manager reports them.
+SUBSYSTEM_IDENTIFICATION: Final = "overdrive xgv-sim (ByWire XGV)"
+NODE_IDENTIFICATION: Final = "XGV controller"
+COMPONENT_IDENTIFICATION: Final = {
+    XgvComponent.NODE_MANAGER: "Node Manager", XgvComponent.MOTION_PROFILE_DRIVER:
+    "Motion Profile Driver", XgvComponent.SIGNALS_DRIVER: "Signals Driver",
+    XgvComponent.ERROR_MANAGER: "Error Manager", XgvComponent.PRIMITIVE_DRIVER: "Primitive Driver",
+    GLOBAL_POSE_SENSOR: "Global Pose Sensor", LOCAL_POSE_SENSOR: "Local Pose Sensor",
+    VELOCITY_STATE_SENSOR: "Velocity State Sensor"}
+CORE_SERVICE: Final = 0   # OpenJAUS jausService.h CORE_MESSAGE_SUPPORT
+CORE_INPUTS: Final = (0x0001, 0x0002, 0x0003, 0x0004, 0x0005, 0x0006, 0x0007, 0x0008, 0x0009,
+                      0x000A, 0x000B, 0x000C, 0x000D, 0x000E, 0x000F, 0x0010, 0x2001, 0x2002,
+                      0x200D, 0x2202)   # reference §4 core messages taken by every component
+CORE_OUTPUTS: Final = (0x0009, 0x000F, 0x0010, 0x4001, 0x4002, 0x400D, 0x4202)
+COMMANDS: Final[dict[int, tuple[tuple[int, int], ...]]] = {
+    XgvComponent.PRIMITIVE_DRIVER: ((0x0405, 0x0FFF), (0x0406, 0x0F)),   # §5, defined bits
+    XgvComponent.MOTION_PROFILE_DRIVER: ((0xE328, 0), (0x0406, 0x0F)),  # §6, relayed devices
+    XgvComponent.SIGNALS_DRIVER: ((0xE322, 0x07),)}
+PRESENCE_BITS: Final = {_WRENCH: 0x0FFF, _DISCRETE: 0x0F, _VELOCITY: 0x01FF, _GLOBAL: 0x01FF,
+                        _LOCAL: 0x01FF}
 _STATUS_NAME: Final = {ComponentStatus.READY: "ready", ComponentStatus.STANDBY: "standby",
                        ComponentStatus.INITIALIZE: "initialize", ComponentStatus.SHUTDOWN: "shutdown",
                        ComponentStatus.FAILURE: "failure", ComponentStatus.EMERGENCY: "emergency"}
@@ -229,7 +275,7 @@ class XgvStats:
     """Counters; the Error Manager reports them (Report Error Count, in this order)."""
 
     FIELDS = ("malformed", "ignored_no_control", "unsupported", "invalid", "unroutable",
-              "datagrams", "messages")
+              "datagrams", "messages", "spoofed", "peers_refused", "expired", "excess")
 
     def __init__(self) -> None:
         for name in self.FIELDS:
@@ -253,6 +299,14 @@ class Component:
     @property
     def status_name(self) -> str:
         return _STATUS_NAME[ComponentStatus(self.status)]
+
+
+@dataclass
+class PeerBinding:
+    """Where a client id talks from, and when it was last heard (issue 18)."""
+
+    address: Address
+    last_heard_s: float
 
 
 @dataclass
@@ -296,8 +350,10 @@ class XgvSimulator:
     def __init__(self, params: VehicleParams, world: World | None = None, seed: int = 1, *,
                  ready: bool = False, subsystem: int = 1, node: int = 1,
                  command_timeout_s: float | None = COMMAND_TIMEOUT_S,
-                 origin_deg: tuple[float, float] = ORIGIN_DEG) -> None:
+                 origin_deg: tuple[float, float] = ORIGIN_DEG,
+                 pack_datagrams: bool = False) -> None:
         self.params = params
+        self.pack_datagrams = pack_datagrams   # one message per datagram unless asked (judp)
         self.subsystem, self.node = subsystem, node
         self.core = VehicleSim(params, world or World(), seed, ready=ready, limits=GateLimits(
             steer_rate_pct_per_s=100.0 * params.steer_rate_rps / params.max_steer_rad,
@@ -314,8 +370,9 @@ class XgvSimulator:
         self.plan = MotionPlan()
         self.devices = SafetyDevices()
         self.stats = XgvStats()
-        self.peers: dict[JausId, Address] = {}
+        self.peers: dict[JausId, PeerBinding] = {}
         self.connections: list[Connection] = []
+        self.reassembler = Reassembler()   # multi-packet messages (none of the XGV's needs it)
         self._instances: dict[tuple[int, int], int] = {}
         self._sequences: dict[tuple[JausId, JausId], int] = {}
         self.next_heartbeat_s = 0.0
@@ -384,7 +441,11 @@ class XgvSimulator:
         """Handle one datagram from ``sender``; returns the replies to send."""
         self.stats.datagrams += 1
         try:
-            messages = decode_datagram(data)
+            raws = split(data)
+            if len(raws) > MAX_MESSAGES_PER_DATAGRAM:
+                self.stats.excess += len(raws) - MAX_MESSAGES_PER_DATAGRAM
+                raws = raws[:MAX_MESSAGES_PER_DATAGRAM]
+            messages = decode_messages(raws, self.reassembler, now_s, sender)
         except JausDecodeError:
             self.stats.malformed += 1
             return []
@@ -410,10 +471,64 @@ class XgvSimulator:
         if not targets:
             self.stats.unroutable += 1
             return
-        if src in self.peers or len(self.peers) < MAX_PEERS:
-            self.peers[src] = sender
+        if not self._admit_peer(src, sender, now_s):
+            return
         for cid, comp in targets:
             self._handle(cid, comp, message, src, sender, now_s, out)
+
+    # ------------------------------------------------------------------ peers (issue 18)
+
+    def _admit_peer(self, src: JausId, sender: Address, now_s: float) -> bool:
+        """Bind ``src`` to ``sender`` on first contact; False (counted) when ``src`` is bound to
+        another address and still alive, or when the peer table is full of live peers.
+
+        The binding (id -> address) is what reports, heartbeats and Reject Component Control
+        go to; it changes only after the peer has been silent for ``PEER_TIMEOUT_S``, by which
+        time its control and service connections are gone (``_expire``).
+        """
+        peer = self.peers.get(src)
+        if peer is not None and peer.address != sender:
+            if now_s - peer.last_heard_s < PEER_TIMEOUT_S:
+                self.stats.spoofed += 1
+                return False
+            self._drop_peer(src)
+            peer = None
+        if peer is None:
+            if len(self.peers) >= MAX_PEERS:
+                self._expire(now_s)
+            if len(self.peers) >= MAX_PEERS:
+                self.stats.peers_refused += 1
+                return False
+            peer = self.peers[src] = PeerBinding(sender, now_s)
+        peer.last_heard_s = now_s
+        return True
+
+    def trusted_addresses(self) -> set[Address]:
+        """The addresses of peers that control a component or hold a service connection (the
+        runtime edge serves them first under load). One pass, whatever the number of senders."""
+        holders = {c.controller for c in self.components.values()}
+        holders.update(conn.client for conn in self.connections)
+        return {peer.address for client, peer in self.peers.items() if client in holders}
+
+    def _holds_session(self, client: JausId) -> bool:
+        return (any(c.controller == client for c in self.components.values())
+                or any(conn.client == client for conn in self.connections))
+
+    def _drop_peer(self, client: JausId) -> None:
+        """Forget ``client``: its service connections end and it loses control (a pause)."""
+        self.peers.pop(client, None)
+        before = len(self.connections)
+        self.connections = [conn for conn in self.connections if conn.client != client]
+        self.stats.expired += before - len(self.connections)
+        for cid, comp in self.components.items():
+            if comp.controller == client:
+                self._release(cid, comp)
+
+    def _expire(self, now_s: float) -> None:
+        """Drop every peer silent for ``PEER_TIMEOUT_S`` (documented in docs/xgv.md)."""
+        for client in [c for c, p in self.peers.items()
+                       if now_s - p.last_heard_s >= PEER_TIMEOUT_S]:
+            self._drop_peer(client)
 
     def _handle(self, cid: int, comp: Component, m: Message, src: JausId, sender: Address,
                 now_s: float, out: list[tuple[Message, Address]]) -> None:
@@ -441,6 +556,13 @@ class XgvSimulator:
                 self.stats.unsupported += 1
             else:
                 reply((self._to(report, comp, src), sender))
+        elif isinstance(m, QueryIdentification | QueryConfiguration | QueryServices
+                        | QueryComponentAuthority):
+            answer = self._discovery(cid, comp, m)
+            if answer is None:
+                self.stats.unsupported += 1
+            else:
+                reply((self._to(answer, comp, src), sender))
         elif isinstance(m, CreateServiceConnection):
             reply((self._to(self._create(cid, comp, m, src, sender), comp, src,
                             service_connection=True), sender))
@@ -458,6 +580,8 @@ class XgvSimulator:
             if (cid == XgvComponent.MOTION_PROFILE_DRIVER and self.pd.controller == comp.jaus_id
                     and self.pd.status == ComponentStatus.EMERGENCY):
                 self.pd.status = ComponentStatus.STANDBY
+        elif isinstance(m, ReportHeartbeatPulse):
+            pass        # a client's node manager saying it is alive (docs/xgv.md): noted above
         elif cid not in CONTROLLABLE:
             self.stats.unsupported += 1
         elif not controlled_by_sender:
@@ -481,6 +605,38 @@ class XgvSimulator:
             self.plan.signals = {k: v for k, v in m.fields_dict().items() if k != "version"}
         else:
             self.stats.unsupported += 1
+
+    # ------------------------------------------------------------------ discovery
+
+    def _discovery(self, cid: int, comp: Component, m: Message) -> Message | None:
+        """Answers to what an OpenJAUS node manager asks (issue 19); None: not ours to answer."""
+        node_manager = cid == XgvComponent.NODE_MANAGER
+        if isinstance(m, QueryComponentAuthority):
+            return ReportComponentAuthority(authority=comp.authority)
+        if isinstance(m, QueryServices):
+            core = Service(CORE_SERVICE, tuple((c, 0) for c in CORE_INPUTS),
+                           tuple((c, 0) for c in CORE_OUTPUTS))
+            reports = sorted(REPORTS[cid] - {_STATUS, _CONTROL, _HEARTBEAT})
+            own = Service(cid, COMMANDS.get(cid, ()) + tuple(
+                (code & 0x0FFF | 0x2000 if code < 0xE000 else code, PRESENCE_BITS.get(code, 0))
+                for code in reports if code < 0xE000),
+                tuple((code, PRESENCE_BITS.get(code, 0)) for code in reports))
+            return ReportServices(services=(core, own))
+        if isinstance(m, QueryConfiguration):
+            if not node_manager or m.query_field not in (QueryField.SUBSYSTEM, QueryField.NODE):
+                return None
+            components = tuple((c, 1) for c in sorted(self.components))
+            return ReportConfiguration(nodes=(ConfigurationNode(self.node, components),))
+        assert isinstance(m, QueryIdentification)
+        names = {QueryField.SUBSYSTEM: SUBSYSTEM_IDENTIFICATION,
+                 QueryField.NODE: NODE_IDENTIFICATION}
+        if m.query_field == QueryField.COMPONENT:
+            text = COMPONENT_IDENTIFICATION[cid]
+        elif node_manager and m.query_field in names:
+            text = names[QueryField(m.query_field)]
+        else:
+            return None
+        return ReportIdentification(query_type=m.query_field, identification=text)
 
     # ------------------------------------------------------------------ access control
 
@@ -515,9 +671,9 @@ class XgvSimulator:
         if old == self.mpd.jaus_id:
             self.mpd_active = False
         else:
-            address = self.peers.get(old)
-            if address is not None:
-                out.append((self._to(RejectComponentControl(), comp, old), address))
+            peer = self.peers.get(old)
+            if peer is not None:
+                out.append((self._to(RejectComponentControl(), comp, old), peer.address))
         if comp is self.mpd and self.pd.controller == self.mpd.jaus_id:
             self._free(self.pd)
 
@@ -621,7 +777,8 @@ class XgvSimulator:
                 conn.rate_hz, conn.presence, conn.address, conn.active = (
                     rate, m.presence_vector, sender, True)
                 return confirm(ServiceConnectionResponse.CREATED, conn.instance, rate)
-        if len(self.connections) >= MAX_CONNECTIONS:
+        if (len(self.connections) >= MAX_CONNECTIONS
+                or sum(conn.client == src for conn in self.connections) >= MAX_CONNECTIONS_PER_PEER):
             return confirm(ServiceConnectionResponse.REFUSED)
         key = (cid, m.command_code)
         instance = self._instances.get(key, 0) % 255 + 1
@@ -648,6 +805,7 @@ class XgvSimulator:
         dt_s = 0.0 if self.last_step_s is None else max(0.0, now_s - self.last_step_s)
         self.last_step_s = now_s
         out: list[tuple[Message, Address]] = []
+        self._expire(now_s)
         self._take_pd_for_mpd(out)
         mode = self._modes(now_s)
         if mode.control_mode == "motion-profiles":
@@ -663,7 +821,7 @@ class XgvSimulator:
             self.latest[topic] = msg
         for conn in self.connections:
             period = 1.0 / conn.rate_hz
-            if conn.active and now_s >= conn.next_s - 0.25 * period:
+            if conn.active and now_s >= conn.next_s - STEP_TOLERANCE_S:
                 report = self._report(conn.component, conn.code, conn.presence, now_s)
                 if report is not None:
                     header = Header(destination=conn.client,
@@ -671,12 +829,17 @@ class XgvSimulator:
                                     service_connection=True, sequence=conn.sequence)
                     conn.sequence = (conn.sequence + 1) % 0x10000
                     out.append((msgspec.structs.replace(report, header=header), conn.address))
-                conn.next_s = now_s + period   # phase-locked to the steps: no drift, no skips
+                # the schedule advances by whole periods, so the mean rate is the confirmed
+                # one (10 Hz was 12.5 Hz when counted from now_s); the first report or a stall
+                # (re)starts it from now
+                conn.next_s += period
+                if conn.next_s < now_s:
+                    conn.next_s = now_s + period
         if now_s >= self.next_heartbeat_s - 1e-9:
             self.next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S
             nm = self.components[XgvComponent.NODE_MANAGER]
-            for client, address in self.peers.items():
-                out.append((self._to(ReportHeartbeatPulse(), nm, client), address))
+            for client, peer in self.peers.items():
+                out.append((self._to(ReportHeartbeatPulse(), nm, client), peer.address))
         return self._pack(out)
 
     def _motion_loops(self, dt_s: float, now_s: float) -> None:
@@ -835,16 +998,22 @@ class XgvSimulator:
             sequence=sequence))
 
     def _pack(self, out: Iterable[tuple[Message, Address]]) -> Outgoing:
-        by_address: dict[Address, list[Message]] = {}
-        for message, address in out:
-            by_address.setdefault(address, []).append(message)
-        datagrams: Outgoing = []
-        for address, messages in by_address.items():
+        """The datagrams for ``out``: one message each (judp), or packed per address."""
+        batches: list[tuple[Address, list[Message]]] = []
+        if self.pack_datagrams:
+            by_address: dict[Address, list[Message]] = {}
+            for message, address in out:
+                by_address.setdefault(address, []).append(message)
+            batches = [(address, messages) for address, messages in by_address.items()]
+        else:
+            batches = [(address, [message]) for message, address in out]
+        outgoing: Outgoing = []
+        for address, messages in batches:
             try:
-                datagrams.extend((d, address) for d in pack(messages))
+                outgoing.extend((d, address) for d in datagrams(messages, self.pack_datagrams))
             except JausEncodeError:
                 self.stats.invalid += 1
-        return datagrams
+        return outgoing
 
     # ------------------------------------------------------------------ views
 

@@ -40,6 +40,8 @@ import msgspec
 from overdrive.control import first_order_lag
 from overdrive.jaus import (
     DEFAULT_CLIENT_ID,
+    ComponentStatus,
+    ConfigurationNode,
     ConfirmComponentControl,
     ConfirmServiceConnection,
     ControlResponse,
@@ -50,28 +52,39 @@ from overdrive.jaus import (
     JausId,
     Message,
     Propulsion,
+    QueryConfiguration,
+    QueryField,
     QueryHeartbeatPulse,
+    QueryIdentification,
+    QueryServices,
     ReadyMode,
     RejectComponentControl,
     ReleaseComponentControl,
+    ReportComponentStatus,
+    ReportConfiguration,
     ReportDiscreteDevices,
     ReportHeartbeatPulse,
+    ReportIdentification,
     ReportLocalPose,
+    ReportServices,
     ReportVehicleMode,
     ReportVelocityState,
     ReportWheelsSpeed,
     ReportWrenchEffort,
     RequestComponentControl,
     Resume,
+    Service,
     ServiceConnectionResponse,
     SetDiscreteDevices,
     SetMotionProfile,
     SetWrenchEffort,
+    TerminateServiceConnection,
     XgvComponent,
     decode_datagram,
+    message_type,
     safety_mode_name,
 )
-from overdrive.jaus.judp import pack
+from overdrive.jaus.judp import datagrams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -100,6 +113,33 @@ POSE_NOISE_SIGMAS: Final = 3.0       # position noise allowance on that chord
 MIN_CURVATURE_SPEED_MPS: Final = 0.1  # below this the yaw rate says nothing about the curvature
 
 ControlKind = Literal["wrench", "motion-profile"]
+NM_HEARTBEAT_PERIOD_S: Final = 0.5   # OpenJAUS's node manager takes one discovery step per
+                                     # heartbeat it hears (3 to register a node): half the
+                                     # reference §2 period, so it knows us within ~1.5 s
+REGISTRATION_GRACE_S: Final = 3.0    # a Reject this soon after the link came up, before the
+                                     # XGV asked our configuration, is OpenJAUS not knowing us
+                                     # yet: retried quietly (seen: confirm, reject ~10 ms later)
+MAX_WATCHERS: Final = 4              # components watching our status (the PD, the MPD)
+CLIENT_NAME: Final = "overdrive XGV client"   # Report Identification texts (ours)
+NODE_NAME: Final = "overdrive"
+
+
+CLIENT_SERVICE: Final = Service(
+    0,   # core (OpenJAUS CORE_MESSAGE_SUPPORT): what a controlling client takes and sends
+    inputs=tuple((code, 0) for code in (0x0009, 0x000F, 0x0010, 0x2202, 0x2B00, 0x2B01, 0x2B03,
+                                        0x4202)),
+    outputs=tuple((code, 0) for code in (0x0004, 0x0008, 0x000D, 0x000E, 0x0405, 0x0406, 0x2202)))
+
+
+def _every_field(code: int) -> int:
+    """The presence vector asking for every field of a report (0 when it has none): OpenJAUS
+    honours 0 literally and sends empty reports (issue 19)."""
+    cls = message_type(code, code >= EXPERIMENTAL_CODES)
+    layout = getattr(cls, "layout", None)
+    return getattr(layout, "valid_bits", 0)
+
+
+EXPERIMENTAL_CODES: Final = 0xE000   # reference §6: TORC's experimental codes are 0xE___
 
 
 class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
@@ -120,6 +160,10 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
     pose_component: int = XgvComponent.PRIMITIVE_DRIVER
     publish_truth: bool = False           # overdrive drive: the run's trace from the reports
     limits: GateLimits | None = None      # who may command (default: VehicleSim's sources)
+    pack_datagrams: bool = False          # several messages per datagram: only for peers that
+                                          # read them all (OpenJAUS keeps the first only)
+    node_manager: bool = True             # be our node's node manager (docs/xgv.md): OpenJAUS
+                                          # keeps a controller only if its system tree has it
 
 
 class ClientStats:
@@ -161,6 +205,13 @@ class XgvClient:
             ReportWheelsSpeed.code: self.pd,
         }
         self.stats = ClientStats()
+        # discovery: our node's node manager (component 1, instance 1)
+        self.own_node_manager = JausId(cfg.client_id.subsystem, cfg.client_id.node, 1, 1)
+        self.replies: list[Message] = []
+        self.next_nm_heartbeat_s = -math.inf
+        self.registered = False        # the XGV asked our node's configuration
+        self.status_watchers: dict[JausId, list[float]] = {}   # id -> [period, next due]
+        self.link_up_s: float | None = None
         # link and control
         self.heartbeat_s: float | None = None
         self.link_up = False
@@ -216,17 +267,71 @@ class XgvClient:
         for m in messages:
             self.stats.messages += 1
             h = m.header
-            if (not h.destination.matches(cfg.client_id) or h.source.subsystem != cfg.xgv_subsystem
+            to_us = h.destination.matches(cfg.client_id) or (
+                cfg.node_manager and h.destination.matches(self.own_node_manager))
+            if (not to_us or h.source.subsystem != cfg.xgv_subsystem
                     or h.source.node != cfg.xgv_node):
                 self.stats.foreign += 1
                 continue
+            if isinstance(m, QueryIdentification | QueryConfiguration | QueryServices
+                          | QueryHeartbeatPulse):
+                self._answer(m)
+                continue
+            if isinstance(m, CreateServiceConnection | TerminateServiceConnection):
+                self._status_connection(m, now_s)
+                continue
             self._take(m, h.source, now_s)
+
+    def _answer(self, m: Message) -> None:
+        """Discovery, as OpenJAUS's node manager asks it of a node (docs/xgv.md)."""
+        h = m.header
+        me = self.config.client_id
+        asked = me if h.destination == me else self.own_node_manager
+        answer: Message | None = None
+        if isinstance(m, QueryHeartbeatPulse):
+            answer = ReportHeartbeatPulse()
+        elif isinstance(m, QueryIdentification) and m.query_field in (QueryField.NODE,
+                                                                       QueryField.COMPONENT):
+            text = CLIENT_NAME if m.query_field == QueryField.COMPONENT and asked == me \
+                else NODE_NAME
+            answer = ReportIdentification(query_type=m.query_field, identification=text)
+        elif isinstance(m, QueryConfiguration):
+            self.registered = True
+            answer = ReportConfiguration(nodes=(ConfigurationNode(me.node, (
+                (1, 1), (me.component, me.instance))),))
+            asked = self.own_node_manager
+        elif isinstance(m, QueryServices):
+            answer = ReportServices(services=(CLIENT_SERVICE,))
+        if answer is None:
+            self.stats.foreign += 1
+            return
+        self.replies.append(self._to(answer, h.source, source=asked))
+
+    def _status_connection(self, m: Message, now_s: float) -> None:
+        """A controlled component watching its controller (OpenJAUS's Primitive Driver asks
+        Report Component Status at 5 Hz and brakes when it stops): served at the asked rate."""
+        source = m.header.source
+        if isinstance(m, TerminateServiceConnection):
+            self.status_watchers.pop(source, None)
+            return
+        assert isinstance(m, CreateServiceConnection)
+        ok = (m.command_code == ReportComponentStatus.code and m.rate_hz > 0.0
+              and (source in self.status_watchers or len(self.status_watchers) < MAX_WATCHERS))
+        rate = min(m.rate_hz, self.config.report_rate_hz) if ok else 0.0
+        if ok:
+            self.status_watchers[source] = [1.0 / rate, now_s]
+        self.replies.append(self._to(ConfirmServiceConnection(
+            command_code=m.command_code, instance_id=1 if ok else 0, rate_hz=rate,
+            response=ServiceConnectionResponse.CREATED if ok
+            else ServiceConnectionResponse.COMPONENT_NOT_CAPABLE), source,
+            service_connection=True))
 
     def _take(self, m: Message, source: JausId, now_s: float) -> None:
         if isinstance(m, ReportHeartbeatPulse):
             self.heartbeat_s = now_s
             if not self.link_up:
                 self.link_up = True
+                self.link_up_s = now_s
                 self._told.discard("heartbeat")
         elif isinstance(m, ConfirmComponentControl) and source == self.target:
             self.control = m.response == ControlResponse.ACCEPTED
@@ -235,6 +340,10 @@ class XgvClient:
             else:
                 self._notice("control", f"{self.target} refused control (response {m.response})")
         elif isinstance(m, RejectComponentControl) and source == self.target:
+            if self._not_known_yet(now_s):
+                self.control = False           # retried at once, without a fault
+                self.next_request_s = now_s
+                return
             if self.control:
                 self._notice("control", f"{self.target} took control away (Reject Component Control)")
             self.control = False
@@ -256,6 +365,10 @@ class XgvClient:
             self.pose = m
         elif isinstance(m, ReportWheelsSpeed):
             self.wheels = m
+
+    def _not_known_yet(self, now_s: float) -> bool:
+        return (self.config.node_manager and not self.registered and self.link_up_s is not None
+                and now_s - self.link_up_s < REGISTRATION_GRACE_S)
 
     def _discrete_report(self, m: ReportDiscreteDevices) -> None:
         self.discrete = m
@@ -428,7 +541,16 @@ class XgvClient:
     def command_datagrams(self, now_s: float) -> list[bytes]:
         """What to send now: the connection sequence, then the stream of commands."""
         cfg = self.config
-        messages: list[Message] = []
+        messages, self.replies = self.replies, []
+        if cfg.node_manager and now_s >= self.next_nm_heartbeat_s:
+            messages.append(self._to(ReportHeartbeatPulse(), self.node_manager,
+                                     source=self.own_node_manager))
+            self.next_nm_heartbeat_s = now_s + NM_HEARTBEAT_PERIOD_S
+        for watcher, due in self.status_watchers.items():
+            if now_s >= due[1]:
+                messages.append(self._to(ReportComponentStatus(
+                    primary_status=ComponentStatus.READY), watcher, service_connection=True))
+                due[1] = max(due[1] + due[0], now_s)
         if not self.link_up:
             if now_s >= self.next_query_s:
                 messages.append(self._to(QueryHeartbeatPulse(), self.node_manager))
@@ -437,7 +559,8 @@ class XgvClient:
             for code, component in self.wanted.items():
                 if code not in self.connections and now_s >= self.next_create_s[code]:
                     messages.append(self._to(CreateServiceConnection(
-                        command_code=code, rate_hz=cfg.report_rate_hz), component,
+                        command_code=code, rate_hz=cfg.report_rate_hz,
+                        presence_vector=_every_field(code)), component,
                         service_connection=True))
                     self.next_create_s[code] = now_s + cfg.retry_s
             if not self.control and now_s >= self.next_request_s:
@@ -454,7 +577,7 @@ class XgvClient:
                 messages.append(discrete)
             messages.append(self._wrench() if cfg.control == "wrench" else self._motion())
         try:
-            return pack(messages)
+            return datagrams(messages, cfg.pack_datagrams)
         except JausEncodeError:   # cannot happen with validated inputs; never crash the stack
             self._notice("encode", "a command could not be encoded")
             return []
@@ -464,7 +587,7 @@ class XgvClient:
         if not self.control:
             return []
         self.control = False
-        return pack([self._to(ReleaseComponentControl(), self.target)])
+        return datagrams([self._to(ReleaseComponentControl(), self.target)])
 
     def _wrench(self) -> SetWrenchEffort:
         throttle, brake, _ = gate_pedals(self.pedals.throttle_pct, self.pedals.brake_pct)
@@ -517,10 +640,11 @@ class XgvClient:
         return self._to(SetDiscreteDevices(propulsion_flags=wanted[0], parking_horn_flags=wanted[1],
                                            gear=wanted[2]), self.target)
 
-    def _to(self, message: Message, destination: JausId, *,
-            service_connection: bool = False) -> Any:
-        source = self.config.client_id
-        key: tuple[Any, ...] = (destination, message.code) if service_connection else (destination,)
+    def _to(self, message: Message, destination: JausId, *, service_connection: bool = False,
+            source: JausId | None = None) -> Any:
+        source = source or self.config.client_id
+        key: tuple[Any, ...] = (source, destination, message.code) if service_connection \
+            else (source, destination)
         sequence = self._sequences.get(key, 0)
         self._sequences[key] = (sequence + 1) % 0x10000
         return msgspec.structs.replace(message, header=Header(
