@@ -31,10 +31,10 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
 test: lint
 	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock and not interop"
 	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
+	@$(MAKE) --no-print-directory coverage-gate
 
 interop: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider -m interop -rs
-	@$(MAKE) --no-print-directory coverage-gate
 
 coverage-gate: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider $(SAFETY_TESTS) --no-header \

@@ -4,6 +4,8 @@ the SPSS stream keeps its 100 ms cadence."""
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from overdrive.messages import AdvanceAuthorization, Notice, SetSpeed, Topic
@@ -41,7 +43,7 @@ def test_a_cut_below_a_normal_stop_asks_for_full_brake_at_once(preset, speed: fl
     notices = [m for _, topic, m in cut if topic == Topic.NOTICE and m.kind == "hard_brake"]
     assert len(notices) == 1 and "braking with everything" in notices[0].reason
     times = spss_times(out + cut)
-    gaps = [b - a for a, b in zip(times, times[1:])]
+    gaps = [b - a for a, b in itertools.pairwise(times)]
     assert max(gaps) <= 0.1 + 1e-9, "an urgent SPSS never opens a gap in the stream"
 
 
