@@ -78,6 +78,8 @@ class MoveCommand(Message, frozen=True):
     distance_m: float = 0.0
     maxspeed_mps: float = 0.0
     curvature_1pm: float = 0.0
+    issued_s: float | None = None    # when the planner sent it (the run's clock): the distance
+                                     # counts from where the vehicle was then; None: on arrival
 
 
 class MoveReply(Message, frozen=True):
@@ -116,15 +118,18 @@ class MaxSpeed(Message, frozen=True):
 
 
 class AdvanceAuthorization(Message, frozen=True):
-    """Source ``source`` considers it safe to advance ``distance_m`` from where the vehicle is now.
+    """Source ``source`` considers it safe to advance ``distance_m`` from where the vehicle was
+    at ``issued_s`` (the run's clock; None: from wherever it is when this arrives).
 
     Each source's authorization replaces that source's previous one and is used up as the
-    vehicle moves; the most restrictive source applies.
+    vehicle moves; the most restrictive source applies. The travel since ``issued_s`` is
+    subtracted on arrival; a stale or future-dated one is refused (``servers.anchoring``).
     """
 
     source: str
     distance_m: float
     reverse: bool = False
+    issued_s: float | None = None
 
 
 class DriveMode(Message, frozen=True):

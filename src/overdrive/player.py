@@ -107,14 +107,17 @@ class ScenarioPlayer:
         if kind in ("move", "reverse", "stop"):
             self.command_id += 1
             if kind == "stop":
-                out.append((Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=self.command_id)))
+                out.append((Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=self.command_id,
+                                                            issued_s=now_s)))
             else:
                 out.append((Topic.MOVE_COMMAND, MoveCommand(
                     kind=kind, command_id=self.command_id, distance_m=body.distance_m,
-                    maxspeed_mps=body.maxspeed_mps, curvature_1pm=body.curvature_1pm)))
+                    maxspeed_mps=body.maxspeed_mps, curvature_1pm=body.curvature_1pm,
+                    issued_s=now_s)))
         elif kind == "advance":
             out.append((Topic.ADVANCE, AdvanceAuthorization(
-                source=body.source, distance_m=body.distance_m, reverse=body.reverse)))
+                source=body.source, distance_m=body.distance_m, reverse=body.reverse,
+                issued_s=now_s)))
         elif kind == "max_speed":
             self.limits[body.source] = MaxSpeed(source=body.source, speed_mps=body.speed_mps)
             out.append((Topic.MAX_SPEED, self.limits[body.source]))

@@ -234,7 +234,7 @@ def test_ranger_braking_at_the_tyre_limit_on_a_slippery_road_is_inside_the_ellip
 
 
 def test_a_lowered_limit_is_not_demanded_faster_than_the_road_allows() -> None:
-    """FP, rule 3 (speed): a lowered limit must be met along a 2.0 m/s^2 ramp whatever the
+    """FP, rule 3 (speed): a lowered limit had to be met along a 2.0 m/s^2 ramp whatever the
     road. On ice (friction 0.15) the judge's own ``physical_decel_mps2`` is 1.47 m/s^2: a
     vehicle braking that hard from 6 m/s to a new 2 m/s limit is still reported as speeding
     (1.06 m/s over the ramp)."""

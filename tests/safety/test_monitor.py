@@ -313,7 +313,7 @@ def test_a_lowered_limit_is_met_along_a_ramp(monitor: Monitor) -> None:
     clock = Clock(late)
     clock.at(0.0, 10.0)
     clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=4.0))
-    for _ in range(300):                             # keeps 10 m/s: over the ramp within 0.5 s
+    for _ in range(600):                             # keeps 10 m/s: over the ramp within 0.5 s
         clock.at(0.0, 10.0)
     assert rules(late)["speed"]["amount"] == pytest.approx(6.0)
 

@@ -78,3 +78,30 @@ def test_no_hard_brake_for_a_standing_vehicles_speed_noise(preset, noise: float)
     out, _ = drive(node, 0.0, 1.0, noise, 0.0,
                    [(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=0.0))])
     assert not [m for _, topic, m in out if topic == Topic.NOTICE and m.kind == "hard_brake"]
+
+
+# --------------------------------------------------------------------------- anchored in time
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.1, 0.5])
+def test_an_authorization_counts_from_where_the_vehicle_was_when_issued(preset, delay_s: float) -> None:
+    node = DrivingModule(preset)
+    _, odo = drive(node, 0.0, 1.0, 5.0, 0.0)
+    late = AdvanceAuthorization(source="lidar", distance_m=30.0, issued_s=1.0 - delay_s)
+    out, _ = drive(node, 1.0, 0.01, 5.0, odo, [(Topic.ADVANCE, late)])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == pytest.approx(30.0 - 5.0 * delay_s, abs=0.051)
+
+
+@pytest.mark.parametrize(("issued_s", "why"), [(0.2, "stale"), (2.0, "in the future")])
+def test_a_stale_or_future_dated_authorization_holds_its_source_at_zero(preset, issued_s: float,
+                                                                        why: str) -> None:
+    node = DrivingModule(preset)
+    _, odo = drive(node, 0.0, 1.5, 0.0, 0.0,
+                   [(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=30.0,
+                                                         issued_s=0.0))])
+    bad = AdvanceAuthorization(source="lidar", distance_m=50.0, issued_s=issued_s)
+    out, _ = drive(node, 1.5, 0.01, 0.0, odo, [(Topic.ADVANCE, bad)])
+    rejected = [m for _, topic, m in out if topic == Topic.NOTICE and m.kind == "rejected"]
+    assert rejected and why in rejected[0].reason
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == 0.0, "fail-safe: the source's authorization is void"

@@ -159,7 +159,8 @@ def test_move_from_parked_requests_run_and_authorizes_the_distance(preset) -> No
     node.step(0.0, sensors(preset, state="parked", engine="off", gear=preset.park_gear))
     out = node.step(0.01, [*sensors(preset, state="parked", engine="off", gear=preset.park_gear), (Topic.MOVE_COMMAND, cmd(d=30.0, v=8.0, k=-0.02))])
     assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="forward")
-    assert last(out, Topic.ADVANCE) == AdvanceAuthorization(source="move", distance_m=30.0)
+    assert last(out, Topic.ADVANCE) == AdvanceAuthorization(source="move", distance_m=30.0,
+                                                            issued_s=0.01)
     assert last(out, Topic.MAX_SPEED) == MaxSpeed(source="move", speed_mps=8.0)
     assert last(out, Topic.STEERING) == SteeringRequest(curvature_1pm=-0.02)
     assert last(out, Topic.MOVE_STATUS).phase == "starting"
@@ -205,8 +206,9 @@ def test_reverse_after_standstill_shifts_and_voids_forward_authorization(preset)
     out = node.step(0.2, [*sensors(preset, odo=10.0), (Topic.MOVE_COMMAND, cmd("reverse", d=5.0, v=1.0, cid=2))])
     assert last(out, Topic.MOVE_REPLY).accepted
     advances = all_of(out, Topic.ADVANCE)
-    assert AdvanceAuthorization(source="move", distance_m=0.0, reverse=False) in advances
-    assert advances[-1] == AdvanceAuthorization(source="move", distance_m=5.0, reverse=True)
+    assert AdvanceAuthorization(source="move", distance_m=0.0, reverse=False, issued_s=0.2) in advances
+    assert advances[-1] == AdvanceAuthorization(source="move", distance_m=5.0, reverse=True,
+                                                issued_s=0.2)
     assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="reverse")
     assert last(out, Topic.MOVE_STATUS).phase == "shifting"
     out = run(node, 0.21, 0.05, speed=-0.5, odo=10.5, gear=preset.reverse_gear)
@@ -404,3 +406,33 @@ def test_a_radar_estop_is_not_overridden_by_an_interruption(preset) -> None:
     assert node.phase == "estopped"
     run(node, 0.55, 0.2, speed=4.0, mode="estop-pause", radar=3.0)
     assert node.phase == "estopped" and node.latched
+
+
+
+# ----------------------------------------------------------------------------- anchored in time (issue 17)
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.2, 0.5])
+def test_a_command_counts_from_where_the_vehicle_was_when_it_was_issued(preset, delay_s: float) -> None:
+    node = MoveServer(preset)
+    odo = 0.0
+    for i in range(100):                               # driving at 5 m/s for 1 s
+        node.step(i * 0.01, sensors(preset, speed=5.0, odo=odo))
+        odo += 0.05
+    issued_s = 1.0 - delay_s
+    late = MoveCommand(kind="move", command_id=1, distance_m=20.0, maxspeed_mps=5.0,
+                       issued_s=issued_s)
+    out = node.step(1.0, [*sensors(preset, speed=5.0, odo=odo), (Topic.MOVE_COMMAND, late)])
+    assert last(out, Topic.MOVE_REPLY).accepted
+    travelled = 5.0 * delay_s
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(20.0 - travelled, abs=0.051)
+
+
+@pytest.mark.parametrize(("age_s", "why"), [(1.2, "stale"), (-0.5, "in the future")])
+def test_a_stale_or_future_dated_command_is_refused(preset, age_s: float, why: str) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 1.5)
+    bad = MoveCommand(kind="move", command_id=1, distance_m=20.0, maxspeed_mps=5.0,
+                      issued_s=1.5 - age_s)
+    out = node.step(1.5, [*sensors(preset), (Topic.MOVE_COMMAND, bad)])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.accepted, reply.code) == (False, "stale") and why in reply.message

@@ -49,6 +49,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
 )
+from overdrive.servers.anchoring import OdometerHistory
 from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
@@ -145,6 +146,8 @@ def validate_max_speed(msg: Any) -> str:
 def validate_advance(msg: Any) -> str:
     if not isinstance(msg, AdvanceAuthorization):
         return f"advance: not an AdvanceAuthorization ({type(msg).__name__})"
+    if msg.issued_s is not None and not finite(msg.issued_s):
+        return f"advance: issued_s {msg.issued_s!r} from {msg.source!r} is not finite"
     if not _valid_source(msg.source):
         return "advance: empty source"
     if not isinstance(msg.reverse, bool):
@@ -418,6 +421,8 @@ class DrivingModule:
         self.goal_mps = 0.0
         self._cut: float | None = None   # distance left when the terminal stop was commanded
         self.hard_brake = False          # braking with everything until the vehicle stands
+        self.history = OdometerHistory()  # odometer by time: authorizations count from their issue
+        self._arrived: list[AdvanceAuthorization] = []   # this period's, applied after the sensors
         self._cut_direction = False
         self.gears = GearTable(params)
         self._low_gear_max_mps = params.gear(params.low_gear).max_speed_mps
@@ -475,8 +480,22 @@ class DrivingModule:
         if reason:
             self._reject("advance", reason, out)
         else:
-            self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m),
-                                       self.odometer_m)
+            self._arrived.append(msg)
+
+    def _apply_advances(self, now_s: float, out: list) -> None:
+        """This period's authorizations, each counted from where the vehicle was when it was
+        issued; a stale or future-dated one is refused and its source holds at 0 (fail-safe)."""
+        for msg in self._arrived:
+            odometer0 = self.odometer_m
+            if msg.issued_s is not None:
+                anchored, why = self.history.anchor(msg.issued_s, now_s)
+                if anchored is None:
+                    self._reject("advance", f"advance from {msg.source!r}: {why}; holding", out)
+                    self.authorizations.update(msg.source, msg.reverse, 0.0, self.odometer_m)
+                    continue
+                odometer0 = anchored
+            self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m), odometer0)
+        self._arrived.clear()
 
     def _drive_mode(self, now_s: float, msg: Any, out: list) -> None:
         reason = validate_drive_mode(msg)
@@ -513,6 +532,10 @@ class DrivingModule:
             handler = inputs.get(topic)
             if handler is not None:
                 handler(now_s, msg, out)
+        if self.gps is not None:
+            self.history.record(now_s, self.odometer_m)
+        if self._arrived:
+            self._apply_advances(now_s, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         p, cfg = self.params, self.config

@@ -17,7 +17,9 @@ never the speed server directly:
 A new command replaces the current one at once; without one the vehicle stops at the end of
 the distance (the authorization runs out). Progress comes from the GPS/INS odometer. Command
 ids must increase: a command not newer than one already seen (a reordered or repeated message)
-is rejected as ``stale``, so a STOP is never overtaken by an earlier MOVE.
+is rejected as ``stale``, so a STOP is never overtaken by an earlier MOVE. A command's distance
+counts from where the vehicle was when the planner issued it (``issued_s``; the travel since is
+subtracted on arrival, ``servers.anchoring``); one too old or future-dated is ``stale`` too.
 
 Interruptions are latched: when the vehicle leaves drive-by-wire (a SafeStop pause, a software
 pause, a manual override, an e-stop disable) or the computer loses speed control, the active
@@ -72,6 +74,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
+from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, check_command, direction_of
 from overdrive.validation import finite
@@ -185,6 +188,7 @@ class MoveServer:
         self.active: ActiveCommand | None = None
         self.last_command_id = 0
         self.newest_command_id: int | None = None   # the newest well-formed command seen
+        self.history = OdometerHistory()   # odometer by time: a command counts from its issue
         self.direction = "forward"
         self.curvature_1pm = 0.0
         self.engaged = False            # a MOVE/REVERSE has been accepted: keep the engine up
@@ -353,6 +357,8 @@ class MoveServer:
         else:
             self.stopped_since_s = None
 
+        if self.gps is not None:
+            self.history.record(now_s, self.odometer_m)
         self._learn(dt_s)
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
@@ -419,6 +425,15 @@ class MoveServer:
                             "reordered or repeated")))
                 return
             self.newest_command_id = command_id
+        odometer0_m = self.odometer_m
+        if verdict is None and kind != "stop" and cmd.issued_s is not None:
+            anchored, why = self.history.anchor(cmd.issued_s, now_s)
+            if anchored is None:
+                out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
+                                                        accepted=False, code="stale",
+                                                        message=why)))
+                return
+            odometer0_m = anchored
         if verdict is not None:
             out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
                                                     accepted=False, code=verdict.code,
@@ -435,7 +450,8 @@ class MoveServer:
         if direction != self.direction:
             # the other direction's authorization is void from now on
             out.append((Topic.ADVANCE, AdvanceAuthorization(
-                source=SOURCE, distance_m=0.0, reverse=self.direction == "reverse")))
+                source=SOURCE, distance_m=0.0, reverse=self.direction == "reverse",
+                issued_s=now_s)))
         if self._ready(direction):
             event = "command_run"
         elif self._vehicle_direction() not in (0, -1 if direction == "reverse" else 1) \
@@ -449,7 +465,7 @@ class MoveServer:
         self.fault_active = False
         self.estop_reason = ""
         self.curvature_1pm = float(cmd.curvature_1pm)
-        self.active = ActiveCommand(cmd, direction, self.odometer_m)
+        self.active = ActiveCommand(cmd, direction, odometer0_m)
         self._set_phase(next_phase(self.phase, event))
 
     def _set_phase(self, phase: str) -> None:
@@ -641,7 +657,8 @@ class MoveServer:
         moving = self.phase in ("starting", "shifting", "moving") and self.active is not None
         authorized = self.remaining_m if moving else 0.0
         out.append((Topic.ADVANCE, AdvanceAuthorization(
-            source=SOURCE, distance_m=authorized, reverse=self.direction == "reverse")))
+            source=SOURCE, distance_m=authorized, reverse=self.direction == "reverse",
+            issued_s=now_s)))
         out.append((Topic.MAX_SPEED, MaxSpeed(source=SOURCE,
                                               speed_mps=self.limit_mps if moving else 0.0)))
         out.append((Topic.STEERING, SteeringRequest(curvature_1pm=self.curvature_1pm)))
