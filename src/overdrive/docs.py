@@ -177,6 +177,15 @@ def state_machines_md() -> str:
         out.append(f"| `{state}` | {_cell(row.description)} | {yes[row.throttle]} | "
                    f"{yes[row.engine_on]} | {yes[row.brakes_locked]} | {yes[row.in_gear]} | "
                    f"{_cell(row.note)} |")
+    from overdrive.servers import move as move_server
+
+    out += ["", "## Move server phases (seed 004, issue 17)", "",
+            "`overdrive.servers.move.TRANSITIONS[phase][event] -> phase`: how commands, stops, "
+            "the radar e-stop and interruptions (pause, override, e-stop disable: the command "
+            "is discarded and only a new command moves the vehicle) move the phase.", "",
+            "```mermaid", move_server.mermaid_diagram().rstrip(), "```", "",
+            "| event | raised when |", "|---|---|"]
+    out += [f"| `{e}` | {_cell(why)} |" for e, why in move_server.EVENTS.items()]
     modes = _mode_triggers()
     out += ["", "## XGV safety modes (seed 000)", "",
             "`overdrive.vehicle.modes.safety_mode`: the first mode (highest precedence) whose "

@@ -111,10 +111,15 @@ class SteeringRequest(Message, frozen=True):
 
 
 class MaxSpeed(Message, frozen=True):
-    """A speed limit from one source; the lowest live limit applies."""
+    """A speed limit from one source; the lowest live limit applies.
+
+    ``issued_s`` (the run's clock) orders one source's messages: one not newer than the last
+    taken from that source (reordered or repeated on the way) is refused.
+    """
 
     source: str
     speed_mps: float
+    issued_s: float | None = None
 
 
 class AdvanceAuthorization(Message, frozen=True):
@@ -123,7 +128,9 @@ class AdvanceAuthorization(Message, frozen=True):
 
     Each source's authorization replaces that source's previous one and is used up as the
     vehicle moves; the most restrictive source applies. The travel since ``issued_s`` is
-    subtracted on arrival; a stale or future-dated one is refused (``servers.anchoring``).
+    subtracted on arrival; a stale or future-dated one is refused (``servers.anchoring``), and so
+    is one not newer than the last taken from that source for that direction (reordered or
+    repeated on the way).
     """
 
     source: str

@@ -94,6 +94,8 @@ class ScenarioPlayer:
             out.append((Topic.SET_SPEED, self.spss))
             self.next_spss_s += SPSS_PERIOD_S
         if self.limits and now_s + EPS_S >= self.next_refresh_s:
+            self.limits = {k: msgspec.structs.replace(m, issued_s=now_s)
+                           for k, m in self.limits.items()}
             out.extend((Topic.MAX_SPEED, m) for m in self.limits.values())
             self.next_refresh_s = now_s + REFRESH_PERIOD_S
         return out
@@ -119,7 +121,8 @@ class ScenarioPlayer:
                 source=body.source, distance_m=body.distance_m, reverse=body.reverse,
                 issued_s=now_s)))
         elif kind == "max_speed":
-            self.limits[body.source] = MaxSpeed(source=body.source, speed_mps=body.speed_mps)
+            self.limits[body.source] = MaxSpeed(source=body.source, speed_mps=body.speed_mps,
+                                                issued_s=now_s)
             out.append((Topic.MAX_SPEED, self.limits[body.source]))
             self.next_refresh_s = now_s + REFRESH_PERIOD_S
         elif kind == "steer":

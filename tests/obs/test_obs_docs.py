@@ -43,6 +43,11 @@ def test_state_diagram_has_every_transition(generated: dict[Path, str]) -> None:
             assert f"{state} --> {target} : {event}" in text
     assert text.index("`estop-disable`") < text.index("`manual-override`") < text.index(
         "`drive-by-wire`"), "modes listed in precedence order"
+    from overdrive.servers import move
+
+    for phase, events in move.TRANSITIONS.items():   # the move server's, interruptions included
+        for event, target in events.items():
+            assert f"{phase} --> {target} : {event}" in text
 
 
 def test_topic_table_lists_every_periodic_sensor(generated: dict[Path, str]) -> None:

@@ -386,3 +386,15 @@ def test_hill_start_rollback_does_not_hit_the_car_behind() -> None:
                      events=[{"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
                              {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 3,
                                                     "curvature_1pm": 0}}]), "contact")
+
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_short_replacing_move_is_braked_hard_and_announced(preset: str) -> None:
+    """Issue 17: a MOVE of 2 m accepted at ~10 m/s used to travel 11 m with a plain reply."""
+    result = run(vehicle=preset, events=[
+        {"at_s": 0.5, "move": {"distance_m": 300, "maxspeed_mps": 10, "curvature_1pm": 0}},
+        {"at_s": 14, "move": {"distance_m": 2, "maxspeed_mps": 10, "curvature_1pm": 0}}])
+    no_violation(result)
+    kinds = {e["kind"] for e in result.summary["events"] if e["t_s"] >= 14}
+    assert {"short_command", "hard_brake"} <= kinds

@@ -105,3 +105,33 @@ def test_a_stale_or_future_dated_authorization_holds_its_source_at_zero(preset, 
     assert rejected and why in rejected[0].reason
     status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
     assert status.authorized_m == 0.0, "fail-safe: the source's authorization is void"
+
+
+# --------------------------------------------------------------------------- ordering per source
+
+def test_an_older_or_repeated_authorization_from_a_source_is_refused(preset) -> None:
+    node = DrivingModule(preset)
+    newer = AdvanceAuthorization(source="lidar", distance_m=5.0, issued_s=0.5)
+    older = AdvanceAuthorization(source="lidar", distance_m=50.0, issued_s=0.4)
+    out, odo = drive(node, 0.5, 0.01, 0.0, 0.0, [(Topic.ADVANCE, newer)])
+    out, _ = drive(node, 0.51, 0.05, 0.0, odo, [(Topic.ADVANCE, older), (Topic.ADVANCE, newer)])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == pytest.approx(5.0), "the newer, shorter one stands"
+    rejected = [m for _, topic, m in out if topic == Topic.NOTICE and m.kind == "rejected"]
+    assert len(rejected) == 1 and "reordered or repeated" in rejected[0].reason
+    other = AdvanceAuthorization(source="map", distance_m=3.0, issued_s=0.52)
+    out, _ = drive(node, 0.6, 0.01, 0.0, odo, [(Topic.ADVANCE, other)])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == pytest.approx(3.0), "ordering is per source"
+
+
+def test_an_older_speed_limit_from_a_source_is_refused(preset) -> None:
+    from overdrive.messages import MaxSpeed
+
+    node = DrivingModule(preset)
+    drive(node, 0.0, 0.01, 0.0, 0.0, [(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=2.0,
+                                                                  issued_s=0.0))])
+    out, _ = drive(node, 0.01, 0.01, 0.0, 0.0,
+                   [(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=9.0, issued_s=-0.05))])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.speed_limit_mps == pytest.approx(2.0)

@@ -436,3 +436,20 @@ def test_a_stale_or_future_dated_command_is_refused(preset, age_s: float, why: s
     out = node.step(1.5, [*sensors(preset), (Topic.MOVE_COMMAND, bad)])
     reply = last(out, Topic.MOVE_REPLY)
     assert (reply.accepted, reply.code) == (False, "stale") and why in reply.message
+
+
+@pytest.mark.parametrize(("speed", "distance", "short"), [(9.9, 2.0, True), (9.9, 12.0, False),
+                                                          (3.0, 0.5, True), (3.0, 2.0, False)])
+def test_a_command_shorter_than_the_shortest_stop_is_accepted_with_a_warning(
+        preset, speed: float, distance: float, short: bool) -> None:
+    """Seed 004's "vehicle not in the expected position": executed (hard braking), and the
+    reply and a notice say how far past its end the vehicle will stop."""
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=100.0, v=10.0, cid=1),), speed=speed)
+    out = node.step(0.5, [*sensors(preset, speed=speed), (Topic.MOVE_COMMAND, cmd(d=distance, v=10.0, cid=2))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert reply.accepted
+    notices = [n for n in all_of(out, Topic.NOTICE) if n.kind == "short_command"]
+    assert bool(notices) == short and ("vehicle not in the expected position" in reply.message) == short
+    if short:
+        assert "expect an overrun" in notices[0].reason

@@ -136,6 +136,8 @@ def validate_max_speed(msg: Any) -> str:
         return f"max_speed: not a MaxSpeed ({type(msg).__name__})"
     if not _valid_source(msg.source):
         return "max_speed: empty source"
+    if msg.issued_s is not None and not finite(msg.issued_s):
+        return f"max_speed: issued_s {msg.issued_s!r} from {msg.source!r} is not finite"
     if not finite(msg.speed_mps):
         return f"max_speed: speed_mps {msg.speed_mps} from {msg.source!r} is not finite"
     if msg.speed_mps < 0.0:
@@ -423,6 +425,8 @@ class DrivingModule:
         self.hard_brake = False          # braking with everything until the vehicle stands
         self.history = OdometerHistory()  # odometer by time: authorizations count from their issue
         self._arrived: list[AdvanceAuthorization] = []   # this period's, applied after the sensors
+        self._newest_issue: dict[tuple, float] = {}   # (kind, source[, reverse]) -> newest issued_s
+        self._out_of_order: set[tuple] = set()        # keys with a refused message not yet followed
         self._cut_direction = False
         self.gears = GearTable(params)
         self._low_gear_max_mps = params.gear(params.low_gear).max_speed_mps
@@ -472,7 +476,7 @@ class DrivingModule:
         reason = validate_max_speed(msg)
         if reason:
             self._reject("max_speed", reason, out)
-        else:
+        elif self._in_order(("max_speed", msg.source), msg.issued_s, out):
             self.limits.update(msg.source, float(msg.speed_mps), now_s)
 
     def _advance(self, now_s: float, msg: Any, out: list) -> None:
@@ -482,10 +486,28 @@ class DrivingModule:
         else:
             self._arrived.append(msg)
 
+    def _in_order(self, key: tuple, issued_s: float | None, out: list) -> bool:
+        """False for a message not newer than the last taken from its source (``key``): it was
+        reordered or repeated on the way (one notice per run of them)."""
+        if issued_s is None:
+            return True
+        newest = self._newest_issue.get(key)
+        if newest is not None and issued_s <= newest:
+            if key not in self._out_of_order:
+                self._out_of_order.add(key)
+                self._reject(key[0], f"{key[0]} from {key[1]!r} issued at t={issued_s:.3f} s is "
+                                     f"not newer than t={newest:.3f} s: reordered or repeated", out)
+            return False
+        self._newest_issue[key] = issued_s
+        self._out_of_order.discard(key)
+        return True
+
     def _apply_advances(self, now_s: float, out: list) -> None:
         """This period's authorizations, each counted from where the vehicle was when it was
         issued; a stale or future-dated one is refused and its source holds at 0 (fail-safe)."""
         for msg in self._arrived:
+            if not self._in_order(("advance", msg.source, msg.reverse), msg.issued_s, out):
+                continue
             odometer0 = self.odometer_m
             if msg.issued_s is not None:
                 anchored, why = self.history.anchor(msg.issued_s, now_s)

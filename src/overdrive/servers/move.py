@@ -78,11 +78,12 @@ from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, check_command, direction_of
 from overdrive.validation import finite
-from overdrive.vehicle.presets import GearTable, VehicleParams
+from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
 ENGINE_CUT_MODES = frozenset({"estop-disable", "inactive"})   # seed 000: the XGV kills the engine
+SHORTEST_DECEL_MPS2 = 0.1   # floor of the hardest deceleration (a slope steeper than the tyres hold)
 
 # --------------------------------------------------------------------------- phases (table)
 
@@ -439,8 +440,9 @@ class MoveServer:
                                                     accepted=False, code=verdict.code,
                                                     message=verdict.message)))
             return
+        short = "" if kind == "stop" else self._short_of_a_stop(cmd, odometer0_m, out)
         out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
-                                                accepted=True)))
+                                                accepted=True, message=short)))
         self.last_command_id = command_id
         if cmd.kind == "stop":
             self.active = None
@@ -467,6 +469,29 @@ class MoveServer:
         self.curvature_1pm = float(cmd.curvature_1pm)
         self.active = ActiveCommand(cmd, direction, odometer0_m)
         self._set_phase(next_phase(self.phase, event))
+
+    def _short_of_a_stop(self, cmd: MoveCommand, odometer0_m: float, out: list) -> str:
+        """Seed 004's "vehicle not in the expected position": a command whose distance (left of
+        it now) is shorter than the hardest stop this vehicle can make from its speed. It is
+        executed (hard braking) and the planner is told the overrun to expect."""
+        v = abs(self.speed_mps)
+        if v < self.config.standstill_mps or direction_of(cmd.kind) != self.direction:
+            return ""
+        p, cfg = self.params, self.config
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        grade = -pitch if cmd.kind == "reverse" else pitch
+        decel = max(min(p.max_brake_decel_mps2, cfg.friction * G_MPS2 * math.cos(grade))
+                    + G_MPS2 * math.sin(grade), SHORTEST_DECEL_MPS2)
+        shortest_m = v * (self.period_s + p.brake_lag_s) + v * v / (2.0 * decel)
+        left_m = cmd.distance_m - (self.odometer_m - odometer0_m)
+        if left_m >= shortest_m:
+            return ""
+        message = (f"vehicle not in the expected position: {left_m:.2f} m left at "
+                   f"{v:.2f} m/s, the shortest stop is {shortest_m:.2f} m: expect an overrun "
+                   f"of {shortest_m - left_m:.2f} m")
+        out.append((Topic.NOTICE, Notice(kind="short_command", source=SOURCE,
+                                         code=str(cmd.command_id), reason=message)))
+        return message
 
     def _set_phase(self, phase: str) -> None:
         self.phase = phase
@@ -659,7 +684,7 @@ class MoveServer:
         out.append((Topic.ADVANCE, AdvanceAuthorization(
             source=SOURCE, distance_m=authorized, reverse=self.direction == "reverse",
             issued_s=now_s)))
-        out.append((Topic.MAX_SPEED, MaxSpeed(source=SOURCE,
+        out.append((Topic.MAX_SPEED, MaxSpeed(source=SOURCE, issued_s=now_s,
                                               speed_mps=self.limit_mps if moving else 0.0)))
         out.append((Topic.STEERING, SteeringRequest(curvature_1pm=self.curvature_1pm)))
         reason = self.estop_reason if self.latched else "; ".join(
