@@ -169,7 +169,7 @@ def state_machines_md() -> str:
            "```", "", "### Events", "", "| event | raised when |", "|---|---|"]
     out += [f"| `{e}` | {_cell(why)} |" for e, why in EVENTS.items()]
     out += ["", "### What each state does", "",
-            "| state | description | throttle | engine on | brakes locked | in gear | note |",
+            "| state | description | throttle | engine on | brakes locked | may be in gear | note |",
             "|---|---|---|---|---|---|---|"]
     yes = {True: "yes", False: "no"}
     for state in STATES:
@@ -177,6 +177,10 @@ def state_machines_md() -> str:
         out.append(f"| `{state}` | {_cell(row.description)} | {yes[row.throttle]} | "
                    f"{yes[row.engine_on]} | {yes[row.brakes_locked]} | {yes[row.in_gear]} | "
                    f"{_cell(row.note)} |")
+    out += ["", "\"May be in gear\": the server engages a driving gear only in `shifting`; "
+            "`runwait` entered from `paused` stays in neutral (seed 001: out of pause -> runwait "
+            "-> idle; the gear follows on the way to run), entered from `idle` it keeps idle's "
+            "gear."]
     from overdrive.servers import move as move_server
 
     out += ["", "## Move server phases (seed 004, issue 17)", "",

@@ -398,3 +398,48 @@ def test_a_short_replacing_move_is_braked_hard_and_announced(preset: str) -> Non
     no_violation(result)
     kinds = {e["kind"] for e in result.summary["events"] if e["t_s"] >= 14}
     assert {"short_command", "hard_brake"} <= kinds
+
+
+# --------------------------------------------------------------------------- issue 17, point 6
+
+def test_a_lapsed_limit_source_stops_the_vehicle_gently() -> None:
+    """A limit source that goes quiet counts as 0 (fail-safe), but nothing else needs braking:
+    a controlled stop, not the ellipse's deceleration (was 5.3 m/s^2)."""
+    result = run(duration_s=20, events=[
+        {"at_s": 0.5, "move": {"distance_m": 200, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 1.0, "max_speed": {"source": "map", "speed_mps": 20}},
+        {"at_s": 8.0, "drop": {"channel": "max_speed", "for_s": 12}}])
+    no_violation(result)
+    decels = [-float(r["accel_mps2"]) for r in result.trace if float(r["t_s"]) > 8.0]
+    assert max(decels) < 2.5 * 1.15 and abs(float(result.trace[-1]["speed_mps"])) < 0.05
+
+
+def test_the_computer_cannot_switch_the_engine_under_manual_override() -> None:
+    from overdrive.messages import PowertrainCommand, SafetyDevices
+    from overdrive.vehicle.plant import World
+    from overdrive.vehicle.presets import ESCAPE_HYBRID
+
+    sim = VehicleSim(ESCAPE_HYBRID, World(), 1, ready=True)
+    sim.step(0.0, [(Topic.SAFETY, SafetyDevices(manual_override=True))])
+    off = PowertrainCommand(gear="drive", engine_on=False, source="speed")
+    for i in range(1, 100):
+        sim.step(i * 0.01, [(Topic.POWERTRAIN, off)])
+    assert sim.plant.engine == "running", "the human holds the engine under manual override"
+    sim.step(1.0, [(Topic.SAFETY, SafetyDevices()), (Topic.POWERTRAIN, off)])
+    for i in range(101, 150):
+        sim.step(i * 0.01, [(Topic.POWERTRAIN, off)])
+    assert sim.plant.engine == "off", "in drive-by-wire the computer's command stands"
+
+
+def test_the_fuel_saver_parks_a_vehicle_left_paused_for_ten_minutes() -> None:
+    """Seed 001's paused -> parked after 10 minutes, reachable in the full stack now that an
+    interruption leaves the speed server paused."""
+    result = run(duration_s=625, events=[
+        {"at_s": 0.5, "move": {"distance_m": 20, "maxspeed_mps": 5, "curvature_1pm": 0}},
+        {"at_s": 3.0, "safestop": "pause"}, {"at_s": 6.0, "safestop": "run"}])
+    no_violation(result)
+    to = [(e["t_s"], e["to"]) for e in result.summary["events"] if e["kind"] == "speed_state"]
+    paused_at = next(t for t, state in to if state == "paused")
+    assert ("parked" in [s for _, s in to]) and result.summary["final"]["speed_state"] == "parked"
+    parked_at = next(t for t, state in to if state == "parked")
+    assert parked_at - paused_at == pytest.approx(600.0, abs=1.0)

@@ -98,6 +98,8 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     slippery_hold_s: float = 30.0      # traction control seen within this: slippery, want low gear
     gear_dwell_s: float = 1.0          # a wish for another gear must last this long
     gear_speed_fraction: float = 0.9   # goal <= this x gear top speed (redline fade, seed 001 limits)
+    lapse_decel_mps2: float = 2.5      # a lapsed limit source stops the vehicle this gently (when
+                                       # nothing else needs braking): the XGV's pause deceleration
     hard_brake_min_mps: float = 0.15   # no hard braking below this: 7 sigma of the GPS speed noise
                                        # (a standing vehicle's noise is not motion)
     normal_stop_reaction_s: float = 0.3  # a stop on the normal path loses this much at speed: up to
@@ -277,6 +279,11 @@ class SpeedLimits:
 
     def update(self, source: str, speed_mps: float, now_s: float) -> None:
         self.by_source[source] = (speed_mps, now_s)
+
+    def lapsed(self, now_s: float) -> bool:
+        """A source has gone quiet (its limit counts as 0)."""
+        return any(now_s - received_s > self.ttl_s + TIME_EPS_S
+                   for _, received_s in self.by_source.values())
 
     def lowest_mps(self, now_s: float) -> float:
         """Lowest limit, a lapsed source counting as 0; ``inf`` when no source was ever heard."""
@@ -512,7 +519,9 @@ class DrivingModule:
             if msg.issued_s is not None:
                 anchored, why = self.history.anchor(msg.issued_s, now_s)
                 if anchored is None:
-                    self._reject("advance", f"advance from {msg.source!r}: {why}; holding", out)
+                    if msg.distance_m > 0.0:   # refusing a zero authorization changes nothing
+                        self._reject("advance", f"advance from {msg.source!r}: {why}; holding",
+                                     out)
                     self.authorizations.update(msg.source, msg.reverse, 0.0, self.odometer_m)
                     continue
                 odometer0 = anchored
@@ -611,7 +620,13 @@ class DrivingModule:
         waiting = server is None and now_s < self.first_s + cfg.spss_period_s - TIME_EPS_S
         if (now_s + TIME_EPS_S >= self.next_spss_s or urgent) and not waiting:
             overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
-            speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, limits,
+            spss_limits = limits
+            if (self.limits.lapsed(now_s) and min(v_auth, v_lat) >= v - cfg.accel_band_mps
+                    and not self.hard_brake):
+                # only a lapsed source asks for the stop: a controlled one, not the ellipse's
+                spss_limits = Longitudinal(accel_mps2=limits.accel_mps2,
+                                           decel_mps2=min(limits.decel_mps2, cfg.lapse_decel_mps2))
+            speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, spss_limits,
                                                                        overload_rate, cfg)
             if self.hard_brake:
                 rate = self.params.max_brake_decel_mps2   # the speed server's full-brake request

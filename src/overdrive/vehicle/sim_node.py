@@ -174,8 +174,11 @@ class VehicleSim:
             throttle, brake, engine_on = 0.0, 100.0, False
             gear = plant.gear
         elif not computer_speed:
+            # the human drives: pedals, gear and the engine are theirs, whatever the computer
+            # asks (a real XGV ignores its engine commands under manual override)
             throttle, brake = 0.0, DRIVER_BRAKE_PCT
             gear = plant.gear
+            engine_on = plant.engine != "off"
         self.applied_steer_pct = steer
 
         if dt_s > 0.0:
