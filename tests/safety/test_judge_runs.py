@@ -443,3 +443,23 @@ def test_the_fuel_saver_parks_a_vehicle_left_paused_for_ten_minutes() -> None:
     assert ("parked" in [s for _, s in to]) and result.summary["final"]["speed_state"] == "parked"
     parked_at = next(t for t, state in to if state == "parked")
     assert parked_at - paused_at == pytest.approx(600.0, abs=1.0)
+
+
+@pytest.mark.parametrize("kind", ["pause", "override", "estop"])
+def test_no_motion_after_an_interruption_over_jaus(kind: str) -> None:
+    """Issue 17 acceptance, over JAUS/UDP (the simulated XGV on loopback): the XGV reports the
+    safety mode, the stack discards the MOVE, and only the new MOVE moves the vehicle."""
+    begin, end = INTERRUPTIONS[kind]
+    data = {"name": "jaus-interruption", "interface": "jaus", "start": "ready", "duration_s": 32,
+            "events": [
+                {"at_s": 0.5, "move": {"distance_m": 200, "maxspeed_mps": 6, "curvature_1pm": 0}},
+                {"at_s": 4.0, **begin}, {"at_s": 8.0, **end},
+                {"at_s": 12.0, "move": {"distance_m": 8, "maxspeed_mps": 3, "curvature_1pm": 0}}]}
+    result = run_scenario(parse_scenario(data), None)
+    no_violation(result)
+    rows = result.trace
+    still = [abs(float(r["speed_mps"])) for r in rows if 9.0 <= float(r["t_s"]) <= 12.0]
+    assert max(still) < 0.05
+    moved = float(rows[-1]["odometer_m"]) - next(float(r["odometer_m"]) for r in rows
+                                                 if float(r["t_s"]) >= 12.0)
+    assert 7.0 < moved <= 8.0
