@@ -49,7 +49,7 @@ class ChannelFaults:
         self.now_s = 0.0
         self.windows: dict[str, list[Window]] = windows or {}
         self.held: list[tuple[float, int, str, Any]] = []   # (release time, order, topic, msg)
-        self.reorder_slot: dict[str, Any] = {}
+        self.reorder_slot: dict[str, tuple[Any, float]] = {}   # topic -> (held message, window end)
         self.counts = dict.fromkeys(FAULT_KINDS, 0)
         self._order = 0
 
@@ -66,7 +66,7 @@ class ChannelFaults:
         if self.reorder_slot:   # a message held back for a swap: it goes out after this one
             held = self.reorder_slot.pop(topic, None)
             if held is not None:
-                return (msg, held)
+                return (msg, held[0])
         return (msg,)
 
     def _apply(self, window: Window, topic: str, msg: Any) -> Sequence[Any]:
@@ -81,14 +81,20 @@ class ChannelFaults:
             return ()
         held = self.reorder_slot.pop(topic, None)      # reorder: swap with the next message
         if held is None:
-            self.reorder_slot[topic] = msg
+            self.reorder_slot[topic] = (msg, window.end_s)
             return ()
-        return (msg, held)
+        return (msg, held[0])
 
     def due(self) -> list[tuple[str, Any]]:
+        """Held messages to deliver now: delays that ran out, and a message held for a swap
+        whose window closed with nothing after it (it is late, never lost)."""
+        released = [(topic, held[0]) for topic, held in self.reorder_slot.items()
+                    if held[1] <= self.now_s + EPS_S]
+        for topic, _ in released:
+            del self.reorder_slot[topic]
         if not self.held:
-            return []
+            return released
         ready = sorted(h for h in self.held if h[0] <= self.now_s + EPS_S)
         if ready:
             self.held = [h for h in self.held if h[0] > self.now_s + EPS_S]
-        return [(topic, msg) for _, _, topic, msg in ready]
+        return released + [(topic, msg) for _, _, topic, msg in ready]

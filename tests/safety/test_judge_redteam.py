@@ -338,7 +338,7 @@ def test_the_shortest_stop_includes_the_throttle_actuators_lag() -> None:
 
     plant.step(DT, 100.0, 0.0, 0.0, "drive", True)       # driving at full throttle
     observe(0)
-    monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
+    Clock(monitor).issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
     plant.step(DT, 100.0, 0.0, 0.0, "drive", True)       # the period the command takes
     tick = 1
     observe(tick)

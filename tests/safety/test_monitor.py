@@ -86,6 +86,8 @@ class Clock:
     def issue(self, topic: str, msg: object, accepted: bool = True) -> None:
         """Issue ``msg``; a MOVE / REVERSE also gets the move server's reply (accepted or not)."""
         self.monitor.observe(topic, msg)
+        if topic == Topic.MOVE_COMMAND:
+            self.monitor.observe_delivered(topic, msg)      # delivered at once
         if topic == Topic.MOVE_COMMAND and msg.kind != "stop":
             self.monitor.observe(Topic.MOVE_REPLY, MoveReply(
                 command_id=msg.command_id, kind=msg.kind, accepted=accepted,
@@ -698,3 +700,29 @@ def test_a_curve_leaves_less_grip_for_braking() -> None:
     curve = physical_decel_mps2(ESCAPE_HYBRID, 0.8, 0.0, reverse=False, lat_accel_mps2=5.0)
     assert curve == pytest.approx(math.sqrt((0.8 * G_MPS2) ** 2 - 25.0))
     assert curve < straight
+
+
+def test_a_stop_binds_when_it_reaches_the_move_server(monitor: Monitor) -> None:
+    """Latency cannot be braked away: a STOP is "stop now" from where it arrived; one that never
+    arrives binds nothing (the stack could not know)."""
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0, maxspeed_mps=12.0))
+    clock.at(10.0, 5.0)
+    stop = MoveCommand(kind="stop", command_id=2)
+    monitor.observe(Topic.MOVE_COMMAND, stop)             # issued here, delivered 3 m later
+    clock.at(13.0, 5.0)
+    monitor.observe_delivered(Topic.MOVE_COMMAND, stop)
+    monitor.observe_delivered(Topic.MOVE_COMMAND, stop)   # a duplicate binds nothing more
+    shortest = shortest_stop_m(5.0, ESCAPE_HYBRID, 0.8, 0.0, DT)
+    clock.at(13.0 + shortest - 0.01, 0.0)
+    assert rules(monitor) == {}
+    clock.at(13.0 + shortest + 0.05, 0.0)
+    assert rules(monitor)["authorization[planner]"]["amount"] == pytest.approx(0.05, abs=1e-6)
+    lost = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(lost)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0, maxspeed_mps=12.0))
+    lost.observe(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))   # dropped
+    clock.path([10.0, 20.0], speed_mps=5.0)
+    assert rules(lost) == {}

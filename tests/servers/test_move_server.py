@@ -161,7 +161,7 @@ def test_move_from_parked_requests_run_and_authorizes_the_distance(preset) -> No
     assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="forward")
     assert last(out, Topic.ADVANCE) == AdvanceAuthorization(source="move", distance_m=30.0,
                                                             issued_s=0.01)
-    assert last(out, Topic.MAX_SPEED) == MaxSpeed(source="move", speed_mps=8.0)
+    assert last(out, Topic.MAX_SPEED) == MaxSpeed(source="move", speed_mps=8.0, issued_s=0.01)
     assert last(out, Topic.STEERING) == SteeringRequest(curvature_1pm=-0.02)
     assert last(out, Topic.MOVE_STATUS).phase == "starting"
     # run reached: moving; the authorization is used up by the odometer

@@ -15,7 +15,8 @@ Rules (docs/reliability.md, docs/safety-case.md):
 
 1. **authorization**: each MOVE / REVERSE the move server accepted, and each other source's
    advance, fixes its end at the true position when it was *issued*; a replacement fixes a
-   new end; a STOP binds at once (it cannot be refused) and means "stop now". A command
+   new end; a STOP binds when it reaches the move server (it cannot be refused) and means
+   "stop now" from there. A command
    shorter than the shortest physical stop from that moment (``shortest_stop_m``) is an
    ``impossible_command`` note and is judged against that shortest stop, but a source's
    impossible replacements never move its end further than the end it already had. The
@@ -98,8 +99,9 @@ COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
 }
 """Numeric fields of the commands the finite rule checks."""
 
-DELIVERED_TOPICS = (Topic.SET_SPEED,)
-"""Topics the judge needs as delivered (``observe_delivered``), after channel faults."""
+DELIVERED_TOPICS = (Topic.SET_SPEED, Topic.MOVE_COMMAND)
+"""Topics the judge needs as delivered (``observe_delivered``), after channel faults: the SPSS
+the speed server received, and when a STOP reached the move server."""
 
 TRUTH_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2", "lat_accel_mps2",
                 "curvature_1pm", "pitch_rad", "roll_rad", "odometer_m")
@@ -200,6 +202,7 @@ class Monitor:
         # authorization: key -> end; planner commands wait for the move server's reply
         self.ends: dict[str, End] = {}
         self._pending: dict[int, tuple[Any, float, float, float]] = {}
+        self._stops: dict[int, float] = {}   # STOPs issued, not yet delivered: id -> issue time
         self._noted: set[str] = set()   # keys with an impossible command noted, until a possible one
         # direction: +1 forward, -1 reverse, 0 held (no command yet), None not judged
         self.direction: int | None = 0
@@ -285,8 +288,21 @@ class Monitor:
 
     def observe_delivered(self, topic: str, msg: Any) -> None:
         """Every message on ``DELIVERED_TOPICS`` as it reached its subscribers (after channel
-        faults): the SPSS the speed server was delivered."""
-        self.last_spss_s = self.now_s
+        faults): the SPSS the speed server was delivered; a STOP binds when it first arrives
+        ("stop now" cannot mean before the stack could know)."""
+        if topic == Topic.SET_SPEED:
+            self.last_spss_s = self.now_s
+            return
+        pending = self._stops.pop(msg.command_id, None) if msg.kind == "stop" else None
+        if pending is None or self._manual():
+            return
+        moving_back = self.speed_mps < -MOVING_MPS or (
+            self.direction == -1 and self.speed_mps <= MOVING_MPS)
+        self._set_end(PLANNER_KEY, 0.0, moving_back, f"STOP #{msg.command_id}", self._here(),
+                      stop=True)
+        self.command_limit_mps = math.inf
+        if self.direction is None:          # hold against rolling back from here on
+            self._new_command(-1 if moving_back else (1 if self.speed_mps > MOVING_MPS else 0))
 
     # ------------------------------------------------------------------ commands as issued
 
@@ -330,13 +346,9 @@ class Monitor:
     def _move_command(self, msg: Any) -> None:
         self.planner_seen = True
         if msg.kind == "stop":
-            moving_back = self.speed_mps < -MOVING_MPS or (
-                self.direction == -1 and self.speed_mps <= MOVING_MPS)
-            self._set_end(PLANNER_KEY, 0.0, moving_back, f"STOP #{msg.command_id}", self._here(),
-                          stop=True)
-            self.command_limit_mps = math.inf
-            if self.direction is None:          # hold against rolling back from here on
-                self._new_command(-1 if moving_back else (1 if self.speed_mps > MOVING_MPS else 0))
+            if len(self._stops) >= PENDING_MAX:
+                self._stops.pop(next(iter(self._stops)))
+            self._stops[msg.command_id] = self.now_s   # binds when delivered
             return
         if not (msg.distance_m >= 0.0 and msg.maxspeed_mps >= 0.0):
             return   # invalid: the move server must reject it; nothing to hold the vehicle to

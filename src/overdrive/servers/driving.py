@@ -610,7 +610,7 @@ class DrivingModule:
                                             plan_ell)
         request = self._client(now_s, v)
         goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
-        urgent = self._hard_brake(now_s, remaining, v, limits, out)
+        urgent = self._hard_brake(remaining, v, grade, limits, out)
         if self.hard_brake:
             goal = 0.0
         self.goal_mps = goal
@@ -658,7 +658,7 @@ class DrivingModule:
 
     # ------------------------------------------------------------------ helpers
 
-    def _hard_brake(self, now_s: float, remaining_m: float, v: float, limits: Longitudinal,
+    def _hard_brake(self, remaining_m: float, v: float, grade_rad: float, limits: Longitudinal,
                     out: list) -> bool:
         """Issue 17: when what is left of the authorization is shorter than a stop on the normal
         path (``normal_stop_reaction_s`` at speed, then the ellipse's deceleration, or the
@@ -673,7 +673,7 @@ class DrivingModule:
             return False
         decel = max(limits.decel_mps2, cfg.min_rate_mps2)
         normal_m = max(v * cfg.normal_stop_reaction_s + v * v / (2.0 * decel),
-                       stop_tail_m(v, 0.0, cfg.stop_tail_s))
+                       stop_tail_m(v, grade_rad, cfg.stop_tail_s))
         if remaining_m >= normal_m:
             return False
         self.hard_brake = True

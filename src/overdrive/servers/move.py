@@ -76,7 +76,7 @@ from overdrive.messages import (
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
-from overdrive.servers.move_feasibility import Situation, check_command, direction_of
+from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
@@ -144,6 +144,7 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     friction: float = 0.8              # assumed tyre-road friction (scenario default; no sensor)
     envelope: EnvelopeConfig = DEFAULT_ENVELOPE
     reaction_s: float = 0.7            # the driving module's latency allowance (same figure)
+    plan_decel_fraction: float = 0.6   # the driving module's braking plan's share (same figure)
     stop_margin_m: float = 0.05        # the driving module aims this far before the end
     creep_speed_mps: float = 0.3       # the driving module's terminal phase
     gear_speed_fraction: float = 0.9   # speeds above this share of a gear's top are unreachable
@@ -426,13 +427,20 @@ class MoveServer:
                             "reordered or repeated")))
                 return
             self.newest_command_id = command_id
+        if verdict is None and kind != "stop":
+            verdict = self._too_steep_to_plan(cmd)
         odometer0_m = self.odometer_m
         if verdict is None and kind != "stop" and cmd.issued_s is not None:
             anchored, why = self.history.anchor(cmd.issued_s, now_s)
             if anchored is None:
+                # the planner's newest intent cannot be placed: it may have shortened the
+                # distance, so the command in force is not kept either (fail-safe: stop)
                 out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
                                                         accepted=False, code="stale",
-                                                        message=why)))
+                                                        message=f"{why}; stopping")))
+                if self.active is not None:
+                    self.active = None
+                    self._set_phase(next_phase(self.phase, "stop_cmd"))
                 return
             odometer0_m = anchored
         if verdict is not None:
@@ -469,6 +477,20 @@ class MoveServer:
         self.curvature_1pm = float(cmd.curvature_1pm)
         self.active = ActiveCommand(cmd, direction, odometer0_m)
         self._set_phase(next_phase(self.phase, event))
+
+    def _too_steep_to_plan(self, cmd: MoveCommand) -> Verdict | None:
+        """Infeasible when the driving module's braking plan (a share of the ellipse's
+        deceleration) cannot even hold the slope ahead: the MOVE would be accepted and never
+        driven (red team, issue 17)."""
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        grade = -pitch if cmd.kind == "reverse" else pitch
+        plan_mps2 = self._brake_ell.lon_mps2 * self.config.plan_decel_fraction
+        downhill_mps2 = -G_MPS2 * math.sin(grade)
+        if plan_mps2 > downhill_mps2:
+            return None
+        return Verdict("infeasible", f"the slope pulls at {downhill_mps2:.2f} m/s^2, more than the "
+                                     f"braking plan's {plan_mps2:.2f} m/s^2 on this friction: "
+                                     "the vehicle could not stop on it")
 
     def _short_of_a_stop(self, cmd: MoveCommand, odometer0_m: float, out: list) -> str:
         """Seed 004's "vehicle not in the expected position": a command whose distance (left of

@@ -522,7 +522,11 @@ class SpeedServer:
         a_g = direction * self.accel_mps2
         status = self.status
         if self.latched or status is None or not status.computer_speed:
-            brake = 100.0 if self.latched else self.config.hold_brake_pct
+            # the vehicle's pause logic owns the pedals (it takes the larger brake): a stop asked
+            # at full deceleration (hard braking, issue 17) still gets all of it while moving
+            hard = (self.target_mps == 0.0 and self.rate_mps2 >= p.max_brake_decel_mps2
+                    and not self.stopped)
+            brake = 100.0 if self.latched or hard else self.config.hold_brake_pct
             self.controller.reset(direction * self.speed_filt_mps, a_g, brake)
             return PedalCommand(throttle_pct=0.0, brake_pct=brake, source=SOURCE), powertrain
         target = 0.0
