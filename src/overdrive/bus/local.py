@@ -16,6 +16,27 @@ Inbox = list[Envelope]
 Tap = Callable[[str, Any], None]
 
 
+class Stamped(tuple):
+    """An inbox envelope ``(topic, msg)`` that also carries ``sent_s``, its send time.
+
+    It unpacks and compares like the pair, so nodes that ignore send times see no difference.
+    ``sent_s`` is on the clock of the receiving node's ``now_s`` (the wall-clock runtime converts
+    it); the lock-step runtime delivers plain pairs, sent in the tick that reads them.
+    """
+
+    sent_s: float
+
+    def __new__(cls, topic: str, msg: Any, sent_s: float) -> Stamped:
+        self = super().__new__(cls, (topic, msg))
+        self.sent_s = sent_s
+        return self
+
+
+def sent_time_s(envelope: Envelope, now_s: float) -> float:
+    """When ``envelope`` was sent on ``now_s``'s clock: its stamp, or ``now_s`` without one."""
+    return getattr(envelope, "sent_s", now_s)
+
+
 class ChannelModel(Protocol):
     def route(self, topic: str, msg: Any) -> Sequence[Any]:
         """Messages to deliver now for this publication: ``()`` drops, ``(m, m)`` duplicates."""
