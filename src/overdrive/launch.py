@@ -186,7 +186,8 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
                    allow_remote=allow_remote)
     faults = _channel_faults(scenario)
     bus.channel = faults
-    runtime = WallRuntime([node], bus)
+    # the plant integrates at its fixed period; servers step at once on a command (issue 20)
+    runtime = WallRuntime([node], bus, event_driven=not isinstance(node, VehicleSim))
     runtime_box.append(runtime)
     bus.announce(node.name)
     started = time.monotonic()

@@ -8,6 +8,7 @@ subscribers, so no node knows about faults.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
@@ -34,7 +35,8 @@ class Stamped(tuple):
 
 def sent_time_s(envelope: Envelope, now_s: float) -> float:
     """When ``envelope`` was sent on ``now_s``'s clock: its stamp, or ``now_s`` without one."""
-    return getattr(envelope, "sent_s", now_s)
+    sent_s = getattr(envelope, "sent_s", now_s)
+    return sent_s if math.isfinite(sent_s) else now_s
 
 
 class ChannelModel(Protocol):

@@ -51,6 +51,7 @@ from typing import Any
 import msgspec
 import zenoh
 
+from overdrive.bus.delivery import COMMAND, STATE, STATE_TOPICS, delivery
 from overdrive.bus.local import ChannelModel, Envelope, Stamped, Tap
 from overdrive.bus.wire import Registry, WireError
 from overdrive.messages import Notice, Topic
@@ -91,19 +92,6 @@ PUBLISHERS: dict[str, frozenset[str]] = {
     "sim/faults": SIM,
 }
 """Who may publish on each topic; topics not listed (``events``, extra topics) are open."""
-
-COMMAND, STATE = "command", "state"
-STATE_TOPICS = frozenset({
-    Topic.MOVE_STATUS, Topic.DRIVING_STATUS, Topic.SPEED_STATE, Topic.VEHICLE_STATUS,
-    Topic.WHEEL_SPEED, Topic.GPS_INS, Topic.IMU, Topic.RADAR, Topic.TRUTH, "launch/clock",
-})
-"""Periodic state: each sample supersedes the last, so losing a stale one under load is harmless."""
-
-
-def delivery(topic: str) -> str:
-    """``STATE`` for periodic state topics, else ``COMMAND`` (reliable): unknown topics too."""
-    return STATE if topic in STATE_TOPICS else COMMAND
-
 
 INBOX_CAPACITY = 1024
 """Envelopes a node's inbox holds: ~1 s of everything the busiest node (the recorder) receives
