@@ -17,8 +17,8 @@ is pumped on this thread before each round of steps. Envelopes stamped with thei
 this clock (``Stamped``, from the Zenoh bus) reach the node with ``sent_s`` on its ``now_s`` axis.
 
 Event-driven steps (issue 20): a node also steps as soon as one of its *triggers* arrives
-(``node.triggers`` if it has that attribute, else the command topics it subscribes to; see
-``overdrive.bus.delivery``), so a command crosses a chain of processes without waiting a period
+(``node.triggers`` if it has that attribute, else the chain commands it subscribes to:
+``overdrive.bus.delivery.CHAIN_TOPICS``), so a command crosses a chain of processes without waiting a period
 per hop. Its periodic schedule then re-anchors one period after that step, so a node fed at its
 own rate runs once per period, in phase with its input, and never more than a period goes by
 without a step. Only inboxes that can wake the runtime (``SafeInbox``) trigger; with
@@ -36,7 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from overdrive.bus.delivery import command_topics
+from overdrive.bus.delivery import trigger_topics
 from overdrive.bus.local import Stamped
 from overdrive.messages import Notice, Topic
 from overdrive.runtime import Node
@@ -162,7 +162,7 @@ class WallRuntime:
         for slot in self._slots if event_driven else ():
             node = slot.node
             triggers = getattr(node, "triggers", None)
-            triggers = command_topics(node.subscriptions) if triggers is None else tuple(triggers)
+            triggers = trigger_topics(node.subscriptions) if triggers is None else tuple(triggers)
             if triggers and hasattr(slot.inbox, "wake"):
                 if self._wake is None:
                     self._wake = threading.Event()

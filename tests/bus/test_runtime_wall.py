@@ -227,7 +227,7 @@ def test_a_command_wakes_its_node_at_once_and_state_waits_for_the_period() -> No
 
 def test_every_command_triggers_a_step_in_order_and_fixed_rate_nodes_never_trigger() -> None:
     bus = _ThreadedBus()
-    driven = _Recorder("driving", 0.05, ("cmd",))
+    driven = _Recorder("driving", 0.05, ("cmd",), triggers=("cmd",))
     plant = _Recorder("vehicle", 0.05, ("cmd",), triggers=())
     rt = WallRuntime([driven, plant], bus)
     sent = 0
@@ -251,3 +251,16 @@ def test_event_driven_off_keeps_the_pure_periodic_schedule() -> None:
     rt = WallRuntime([node], bus, event_driven=False)
     _run_until(rt, lambda: bool(node.calls) and (bus.deliver(Topic.SET_SPEED, 1) or True), 0.5)
     assert rt.stats()["speed"]["triggered"] == 0 and len(node.calls) == 1
+
+
+def test_default_triggers_are_the_chain_commands_never_feedback_or_events() -> None:
+    """A trigger on ``vehicle/steer`` looped move -> driving -> move at 3 kHz (found in a launch)."""
+    from overdrive.launch import build_node, preset_scenario
+
+    expected = {"move": (Topic.MOVE_COMMAND,),
+                "driving": (Topic.STEERING, Topic.MAX_SPEED, Topic.ADVANCE, Topic.DRIVE_MODE),
+                "speed": (Topic.SET_SPEED,)}
+    for cli, topics in expected.items():
+        node = build_node(cli, preset_scenario(cli, "escape-hybrid"))
+        rt = WallRuntime([node], _ThreadedBus())
+        assert rt._slots[0].inbox.triggers == frozenset(topics), cli

@@ -4,7 +4,7 @@ Commands and events (MOVE/REVERSE/STOP, replies, notices, SPSS, pedal/steer/powe
 safety devices, simulator world changes) must arrive, once, in order; periodic state (sensors,
 statuses) is superseded by its next sample, so a stale one may be dropped under load. The Zenoh
 bus publishes each kind with matching quality of service, bounds inboxes accordingly, and the
-wall-clock runtime steps a node as soon as a command it subscribes to arrives. Pure data: no
+wall-clock runtime steps a node as soon as a command of the chain it serves arrives. Pure data: no
 clock, no socket.
 """
 
@@ -25,9 +25,18 @@ def delivery(topic: str) -> str:
     return STATE if topic in STATE_TOPICS else COMMAND
 
 
-def command_topics(topics: tuple[str, ...] | list[str]) -> tuple[str, ...]:
-    """The command topics among ``topics``: what wakes an event-driven node."""
-    return tuple(t for t in topics if t not in STATE_TOPICS)
+CHAIN_TOPICS = frozenset({
+    Topic.MOVE_COMMAND, Topic.STEERING, Topic.MAX_SPEED, Topic.ADVANCE, Topic.DRIVE_MODE,
+    Topic.SET_SPEED,
+})
+"""Commands flowing down planner -> move -> driving -> speed: each wakes its receiver at once.
+Not ``vehicle/*`` (the plant integrates at a fixed rate, and the move server only observes
+``vehicle/steer``: a trigger there would loop move -> driving -> move) and not ``events``."""
 
 
-__all__ = ["COMMAND", "STATE", "STATE_TOPICS", "command_topics", "delivery"]
+def trigger_topics(topics: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """The chain commands among a node's subscriptions: what wakes an event-driven node."""
+    return tuple(t for t in topics if t in CHAIN_TOPICS)
+
+
+__all__ = ["CHAIN_TOPICS", "COMMAND", "STATE", "STATE_TOPICS", "delivery", "trigger_topics"]
