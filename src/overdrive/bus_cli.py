@@ -182,19 +182,28 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     raise SystemExit(result.exit_code)
 
 
-def _run_access(run_dir: Path | None, connect: tuple[str, ...], vehicle: str, user: str | None
-                ) -> tuple[tuple[str, ...], str, str | None, str | None]:
+def _run_access(run_dir: Path | None, connect: tuple[str, ...], vehicle: str, user: str | None,
+                wait_s: float = CONNECT_WAIT_S) -> tuple[tuple[str, ...], str, str | None, str | None]:
     """``(connect, vehicle, user, password)``: from ``--run`` (a locked-down launch's tool
-    credentials) when given, else from the options and ``$OVERDRIVE_ZENOH_PASSWORD``."""
+    credentials, waited for ``wait_s``: the run may be starting) when given, else from the
+    options and ``$OVERDRIVE_ZENOH_PASSWORD``."""
     if run_dir is None:
         return connect, vehicle, user, os.environ.get(PASSWORD_ENV)
     from overdrive.bus.access import read_tool_credentials
 
-    try:
-        creds = read_tool_credentials(run_dir)
-    except (OSError, ValueError, KeyError) as exc:
-        _usage(f"--run {run_dir}: {exc}")
-        raise AssertionError from exc   # unreachable: _usage exits
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            creds = read_tool_credentials(run_dir)
+            break
+        except FileNotFoundError as exc:
+            if time.monotonic() > deadline:
+                click.echo(f"error: --run {run_dir}: {exc}", err=True)
+                raise SystemExit(EXIT_VIOLATION) from None
+            time.sleep(0.1)
+        except (OSError, ValueError, KeyError) as exc:
+            _usage(f"--run {run_dir}: {exc}")
+            raise AssertionError from exc   # unreachable: _usage exits
     return connect or (creds["endpoint"],), creds["vehicle"], creds["user"], creds["password"]
 
 
@@ -259,7 +268,8 @@ def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, r
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         _usage(f"DATA is not a valid {cls.__name__}: {exc}")
         return
-    connect, vehicle, user, password = _run_access(run_dir, connect, vehicle, user)
+    connect, vehicle, user, password = _run_access(run_dir, connect, vehicle, user,
+                                                   max(wait_s, CONNECT_WAIT_S))
     try:
         bus = _client(connect, sender, vehicle, zenoh_config, user, allow_remote, wait_s=wait_s,
                       password=password)
@@ -303,7 +313,8 @@ def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[
 
     if not topic or "//" in topic or topic.startswith("/"):
         _usage(f"invalid topic {topic!r}")
-    connect, vehicle, user, password = _run_access(run_dir, connect, vehicle, user)
+    connect, vehicle, user, password = _run_access(
+        run_dir, connect, vehicle, user, timeout_s if timeout_s is not None else CONNECT_WAIT_S)
     prefix = f"overdrive/{vehicle}/"
     try:
         bus = _client(connect, "echo", vehicle, zenoh_config, user, allow_remote,
