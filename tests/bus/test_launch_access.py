@@ -9,21 +9,15 @@ the run matches the embedded run, and the summary counts the attempts.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
-import zenoh
 
-from overdrive.bus.access import read_tool_credentials
-from overdrive.bus.zenoh_bus import session_config
-from overdrive.launch import Launch, free_port, stack_registry
-from overdrive.messages import PedalCommand, SetSpeed
+from overdrive.launch import Launch, free_port
 from overdrive.scenario import parse_scenario
 from overdrive.sim import run_scenario
 from tests.bus.test_launch import FINAL_TOLERANCE_M, ROOT, _distance_m
@@ -41,6 +35,7 @@ ATTACK_AT_S = 3.0
 PEDALS = {"throttle_pct": 100, "brake_pct": 0, "source": "speed"}
 SPSS = {"speed_mps": 18, "accel_mps2": 3, "gear": "drive", "state": "run"}
 RAW_PUTS = 50
+FLOOD = 500          # a flood of stolen-name pedal commands at 1 kHz: all denied, none lost count
 
 
 def _pub(*args: str) -> subprocess.Popen:
@@ -49,28 +44,31 @@ def _pub(*args: str) -> subprocess.Popen:
                             start_new_session=True)
 
 
-def _raw_sessions(launch: Launch, endpoint: str, run_folder: Path, done: threading.Event) -> None:
-    """Raw Zenoh sessions, not overdrive's tools: no credentials, then the tool's credentials."""
-    registry = stack_registry()
-    pedals = registry.encode(PedalCommand(**PEDALS), "speed")
-    spss = registry.encode(SetSpeed(**SPSS), "driving")
-    sessions = []
-    try:
-        node_port = launch.procs["vehicle-sim"].listen       # straight at a node's own listener
-        sessions.append(zenoh.open(session_config(connect=[node_port])))
-        creds = read_tool_credentials(run_folder)
-        for user, password in ((None, None), (creds["user"], creds["password"])):
-            with contextlib.suppress(zenoh.ZError):          # refused: no credentials
-                sessions.append(zenoh.open(session_config(
-                    mode="client", connect=[endpoint], user=user, password=password)))
-        for _ in range(RAW_PUTS):
-            for session in sessions:
-                session.put("overdrive/ego/vehicle/pedals", pedals)
-                session.put("overdrive/ego/speed/set_speed", spss)
-    finally:
-        for session in sessions:
-            session.close()
-        done.set()
+RAW_SESSIONS = """
+import contextlib, sys, zenoh
+from overdrive.bus.access import read_tool_credentials
+from overdrive.bus.zenoh_bus import session_config
+from overdrive.launch import stack_registry
+from overdrive.messages import PedalCommand, SetSpeed
+node_port, endpoint, folder, puts = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+registry = stack_registry()
+pedals = registry.encode(PedalCommand(throttle_pct=100.0, brake_pct=0.0, source="speed"), "speed")
+spss = registry.encode(SetSpeed(speed_mps=18.0, accel_mps2=3.0, gear="drive", state="run"), "driving")
+sessions = [zenoh.open(session_config(connect=[node_port]))]      # at a node's own listener
+creds = read_tool_credentials(folder)
+for user, password in ((None, None), (creds["user"], creds["password"])):
+    with contextlib.suppress(zenoh.ZError):                        # refused: no credentials
+        sessions.append(zenoh.open(session_config(
+            mode="client", connect=[endpoint], user=user, password=password)))
+for _ in range(puts):
+    for session in sessions:
+        session.put("overdrive/ego/vehicle/pedals", pedals)
+        session.put("overdrive/ego/speed/set_speed", spss)
+for session in sessions:
+    session.close()
+print(len(sessions))
+"""
+"""Raw Zenoh sessions, not overdrive's tools, in their own process (never the launcher's)."""
 
 
 def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path) -> None:
@@ -79,7 +77,6 @@ def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     folder = run_dir / "run"
     tools: dict[str, subprocess.Popen] = {}
-    raw_done = threading.Event()
     with Launch(scenario, folder, listen=endpoint, plot=False) as launch:
         def attack(now_s: float) -> None:       # on the runtime thread: start, never wait
             if now_s < ATTACK_AT_S or tools:
@@ -87,18 +84,21 @@ def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path
             tools["no_credentials"] = _pub("vehicle/pedals", json.dumps(PEDALS), "--as", "speed",
                                            "--connect", endpoint, "--wait-s", "2")
             tools["stolen_name"] = _pub("vehicle/pedals", json.dumps(PEDALS), "--as", "speed",
-                                        "--run", str(folder), "--count", "20", "--rate", "50")
+                                        "--run", str(folder), "--count", str(FLOOD),
+                                        "--rate", "1000")
             tools["stolen_spss"] = _pub("speed/set_speed", json.dumps(SPSS), "--as", "driving",
                                         "--run", str(folder), "--count", "10", "--rate", "50")
             tools["note"] = _pub("events", json.dumps({"kind": "note", "source": "cli",
                                                        "reason": "allowed"}), "--run", str(folder))
-            threading.Thread(target=_raw_sessions, args=(launch, endpoint, folder, raw_done),
-                             daemon=True).start()
+            tools["raw"] = subprocess.Popen(
+                [sys.executable, "-c", RAW_SESSIONS, launch.procs["vehicle-sim"].listen, endpoint,
+                 str(folder), str(RAW_PUTS)], cwd=ROOT, stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE, text=True, start_new_session=True)
         launch.start()
         result = launch.run(on_tick=attack)
     outcomes = {name: (*p.communicate(timeout=LOADED_TIMEOUT_S), p.returncode)
                 for name, p in tools.items()}
-    assert raw_done.wait(LOADED_TIMEOUT_S)
+    assert outcomes["raw"][2] == 0 and outcomes["raw"][0].strip() == "2", outcomes["raw"][1]
     summary = result.summary
     assert outcomes["no_credentials"][2] == 1 and "--run" in outcomes["no_credentials"][1]
     for name in ("stolen_name", "stolen_spss", "note"):   # the gate took them: pub cannot tell
@@ -116,7 +116,7 @@ def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path
     access = summary["launch"]["access"]
     assert access["mode"].startswith("locked-down")
     denied = access["tool_denied"]
-    assert denied["vehicle/pedals as 'speed'"] == 20 + RAW_PUTS      # pub --as speed + raw puts
+    assert denied["vehicle/pedals as 'speed'"] == FLOOD + RAW_PUTS   # pub --as speed + raw puts
     assert denied["speed/set_speed as 'driving'"] == 10 + RAW_PUTS
     assert access["refused_links"].get("gate", 0) >= 2, "pub and a raw client without credentials"
     assert access["refused_links"].get("vehicle-sim", 0) >= 1, "a raw peer at the node's port"

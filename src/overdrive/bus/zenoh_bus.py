@@ -96,6 +96,9 @@ PUBLISHERS: dict[str, frozenset[str]] = {
 INBOX_CAPACITY = 1024
 """Envelopes a node's inbox holds: ~1 s of everything the busiest node (the recorder) receives
 (~900 messages/s in a whole-stack run), 100 periods of a 10 ms node; beyond it a node is stalled."""
+TAP_CAPACITY = 65_536
+"""Envelopes queued for taps (the recorder sees every message): ~60 s of a whole-stack run, so a
+launcher stalled for seconds on a loaded host loses nothing (~100 B each: ~7 MB at most)."""
 BLOCK_CLOSE_US = 5_000_000
 """A command publisher blocked this long closes the link (Zenoh's default, stated explicitly):
 long enough for a loaded 2-core host, and the vehicle's 200 ms command timeout stops it first."""
@@ -347,7 +350,7 @@ class ZenohBus:
         bus's decode and policy checks).
         """
         if self._tap_queue is None:
-            self._tap_queue = SafeInbox()
+            self._tap_queue = SafeInbox(TAP_CAPACITY)
             queue = [self._tap_queue]
             callback = self._callback(queue)
             alive = self._prefix + ALIVE + "/"
