@@ -257,10 +257,14 @@ def raise_priority() -> int | None:
         return None
 
 
-def _die_with_parent() -> None:
-    """In the child: get SIGTERM when the launcher dies, even by SIGKILL (Linux); run at
-    ``RUN_NICE`` where permitted."""
+def _node_child() -> None:
+    """In a node's child process: run at ``RUN_NICE`` where permitted, die with the launcher."""
     raise_priority()
+    _die_with_parent()
+
+
+def _die_with_parent() -> None:
+    """In the child: get SIGTERM when the launcher dies, even by SIGKILL (Linux)."""
     if sys.platform.startswith("linux"):
         import ctypes
 
@@ -412,7 +416,7 @@ class Launch:
             proc.popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
                                           stderr=subprocess.STDOUT if self.node_log else None,
                                           env=env, start_new_session=True,
-                                          preexec_fn=_die_with_parent)
+                                          preexec_fn=_node_child)
         proc.starts += 1
         proc.expected_exit = False
         proc.restart_at_s = None

@@ -20,6 +20,7 @@ from overdrive.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, free_port, launc
 from overdrive.messages import Topic
 from overdrive.scenario import Scenario, load_scenario, parse_scenario
 from overdrive.sim import run_scenario
+from tests.bus.conftest import check_undisturbed, retry_when_stalled
 
 pytestmark = pytest.mark.wallclock   # real time: run on an idle machine (Makefile)
 
@@ -91,6 +92,7 @@ def test_demo_over_processes_matches_embedded_run_and_pub_echo_work(run_dir: Pat
     assert not (out / "nodes" / "access").exists(), "the run's credentials die with it"
 
 
+@retry_when_stalled
 def test_open_bus_driving_scenario_matches_embedded_run_and_refuses_rogue_senders(
         run_dir: Path) -> None:
     """``--open-bus``: no authentication, the bus's sender policy still refuses a tool."""
@@ -114,6 +116,7 @@ def test_open_bus_driving_scenario_matches_embedded_run_and_refuses_rogue_sender
             for p in rogue:
                 p.communicate(timeout=20)
     summary = result.summary
+    check_undisturbed(summary)
     assert rogue and rogue[0].returncode == 0, rogue[0].stderr if rogue else "never published"
     rejected = [e for e in summary["events"] if e["kind"] == "rejected" and e.get("code") == "publisher"]
     assert {e["source"] for e in rejected} == {"vehicle", "scenario"}, "each receiving bus refused"
@@ -129,6 +132,7 @@ def _kill_run(scenario: Scenario, run_dir: Path, victim: str, at_s: float,
               extra: tuple = ()) -> tuple[dict, list[list[str]]]:
     result = launch_scenario(scenario, run_dir / "run", listen="", plot=False,
                              actions=[(at_s, "kill", victim), *extra])
+    check_undisturbed(result.summary)
     rows = [line.split(",") for line in (run_dir / "run" / "trace.csv").read_text().splitlines()]
     return result.summary, rows
 
@@ -146,6 +150,7 @@ def _stopped_at_s(rows: list[list[str]], after_s: float) -> tuple[float, float]:
     ("driving", 0.2, "speed"),                          # the speed server's client dies: SPSS watchdog
     ("speed", VEHICLE_COMMAND_TIMEOUT_S, "vehicle"),    # the speed server dies: vehicle command timeout
 ])
+@retry_when_stalled
 def test_a_dead_process_stops_the_vehicle_within_its_deadline(run_dir: Path, victim: str,
                                                               timeout_s: float, stopper: str) -> None:
     scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 6}, "kill")
@@ -163,6 +168,7 @@ def test_a_dead_process_stops_the_vehicle_within_its_deadline(run_dir: Path, vic
     assert any(v.startswith(f"process: {victim} died") for v in summary["violations"])
 
 
+@retry_when_stalled
 def test_killed_move_server_vehicle_stops_within_authorization_and_run_reports_it(run_dir: Path) -> None:
     scenario = parse_scenario({
         "name": "move-kill", "vehicle": "escape-hybrid", "start": "ready", "seed": 1,
@@ -178,6 +184,7 @@ def test_killed_move_server_vehicle_stops_within_authorization_and_run_reports_i
                 killed.append(now_s)
         launch.start()
         summary = launch.run(on_tick=kill_mid_drive).summary
+    check_undisturbed(summary)
     assert killed, "the vehicle never reached 3 m/s"
     rows = [line.split(",") for line in (run_dir / "run" / "trace.csv").read_text().splitlines()]
     stop_s, _speed = _stopped_at_s(rows, killed[0])
@@ -188,6 +195,7 @@ def test_killed_move_server_vehicle_stops_within_authorization_and_run_reports_i
     assert summary["violations"] == [f"process: move died (signal SIGKILL) at t={exits[0]['t_s']:.2f} s"]
 
 
+@retry_when_stalled
 def test_restarted_speed_server_rejoins_cleanly(run_dir: Path) -> None:
     scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 7}, "restart")
     with Launch(scenario, run_dir / "run", listen="", plot=False,
@@ -195,6 +203,7 @@ def test_restarted_speed_server_rejoins_cleanly(run_dir: Path) -> None:
         launch.start()
         result = launch.run()
     summary = result.summary
+    check_undisturbed(summary)
     restarts = [e for e in summary["events"] if e["kind"] == "process_restart"]
     assert [e["node"] for e in restarts] == ["speed"]
     speed = result.reports["speed"]             # the report of the restarted process

@@ -7,7 +7,9 @@ mesh's rules let it put only ``TOOL_TOPICS``). Everything a tool publishes is de
 policed here (``ToolPolicy``): a valid message on a tool topic is re-sent on the mesh as
 sender ``tool``; anything else (a command topic, a claimed node name, a malformed frame, a key
 outside the run) is dropped and counted by reason. Mesh traffic is forwarded, byte for byte,
-to the tool side for the keys a tool subscribes to.
+to the tool side for the keys a tool subscribes to (and only then: the gate subscribes on the
+mesh to a topic only while a tool listens to it, so an idle gate costs the run nothing). The gate
+runs at normal priority: it is not part of the control loop.
 """
 
 from __future__ import annotations
@@ -27,6 +29,14 @@ from overdrive.bus.wire import Registry, WireError
 from overdrive.bus.zenoh_bus import KEY_ROOT, session_config
 
 TOOL_SENDER = "tool"       # the sender a tool's admitted messages carry on the mesh
+INTEREST_POLL_S = 0.2      # how often the gate looks for tool subscribers (echo's first wait)
+EXTRA_TOPICS = ("move/estimates", "launch/clock", "sim/world", "sim/faults")
+"""Topics without a fixed type in ``wire.TOPIC_TYPES`` that a tool may still want to read."""
+
+
+def forwarded_topics(registry: Registry) -> list[str]:
+    """The topics the gate forwards to tools that subscribe to them (``echo``)."""
+    return sorted(set(registry.topic_types) | set(EXTRA_TOPICS))
 
 
 class ToolPolicy:
@@ -109,20 +119,28 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
             publisher(mesh, inward, admitted[0]).put(admitted[1])
 
     def to_tools(sample: zenoh.Sample) -> None:
-        key = str(sample.key_expr)
-        pub = publisher(tools, outward, key)
-        if pub.matching_status:
+        pub = outward.get(str(sample.key_expr))
+        if pub is not None:
             pub.put(sample.payload)
 
-    subs = [tools.declare_subscriber("**", from_tool, allowed_origin=zenoh.Locality.REMOTE),
-            mesh.declare_subscriber(prefix + "**", to_tools, allowed_origin=zenoh.Locality.REMOTE)]
+    for topic in forwarded_topics(registry):      # a tool can see that a key is subscribed
+        publisher(tools, outward, prefix + topic)
+    subs = [tools.declare_subscriber("**", from_tool, allowed_origin=zenoh.Locality.REMOTE)]
+    relays: dict[str, Any] = {}                    # mesh subscriptions, only while a tool listens
     if ready is not None:
         ready.set()
     started = time.monotonic()
     try:
-        while not stop.wait(0.1):
-            pass
+        while not stop.wait(INTEREST_POLL_S):
+            for key, pub in list(outward.items()):
+                wanted = pub.matching_status
+                if wanted and key not in relays:
+                    relays[key] = mesh.declare_subscriber(key, to_tools,
+                                                          allowed_origin=zenoh.Locality.REMOTE)
+                elif not wanted and key in relays:
+                    relays.pop(key).undeclare()
     finally:
+        subs.extend(relays.values())
         report = {"node": "gate", "uptime_s": round(time.monotonic() - started, 3),
                   **policy.report()}
         if report_path is not None:
