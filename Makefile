@@ -27,7 +27,7 @@ SAFETY_TESTS := tests/test_modes.py tests/test_gate.py tests/test_monitor.py tes
 
 test: lint
 	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock"
-	$(PY) -m pytest -p no:cacheprovider -m wallclock
+	$(PY) -m pytest -p no:cacheprovider -rs -m wallclock
 	@$(MAKE) --no-print-directory coverage-gate
 
 # Issue 20: the whole suite while two busy loops occupy both cores (stopped by PID on any exit).
