@@ -80,3 +80,10 @@ def retry_when_stalled(test):
                         shutil.rmtree(child, ignore_errors=True)
         pytest.skip(f"the host stalled a process in each of {ATTEMPTS} attempts: {reason}")
     return wrapper
+
+
+def as_stranger() -> None:
+    """``preexec_fn`` of a tool or attacker a test starts during a run: default priority, not
+    the launcher's raised one (children inherit it), as any other process on the host."""
+    with contextlib.suppress(OSError):
+        os.setpriority(os.PRIO_PROCESS, 0, 0)

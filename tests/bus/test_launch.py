@@ -20,7 +20,7 @@ from overdrive.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, free_port, launc
 from overdrive.messages import Topic
 from overdrive.scenario import Scenario, load_scenario, parse_scenario
 from overdrive.sim import run_scenario
-from tests.bus.conftest import check_undisturbed, retry_when_stalled
+from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
 
 pytestmark = pytest.mark.wallclock   # real time: run on an idle machine (Makefile)
 
@@ -108,7 +108,7 @@ def test_open_bus_driving_scenario_matches_embedded_run_and_refuses_rogue_sender
                      json.dumps({"throttle_pct": 100, "brake_pct": 0, "source": "cli"}),
                      "--connect", endpoint, "--count", "20", "--rate", "100", "--wait-s", "0"],
                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                    start_new_session=True))
+                    start_new_session=True, preexec_fn=as_stranger))
         launch.start()
         try:
             result = launch.run(on_tick=pub_rogue_pedals)

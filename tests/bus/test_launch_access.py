@@ -9,10 +9,8 @@ the run matches the embedded run, and the summary counts the attempts.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +20,7 @@ import pytest
 from overdrive.launch import Launch, free_port
 from overdrive.scenario import parse_scenario
 from overdrive.sim import run_scenario
-from tests.bus.conftest import check_undisturbed, retry_when_stalled
+from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
 from tests.bus.test_launch import FINAL_TOLERANCE_M, ROOT, _distance_m
 from tests.bus.waits import LOADED_TIMEOUT_S
 
@@ -41,16 +39,10 @@ RAW_PUTS = 50
 FLOOD = 500          # a flood of stolen-name pedal commands at 1 kHz: all denied, none lost count
 
 
-def _as_stranger() -> None:
-    """An attacker is no child of the run: default priority, not the launcher's raised one."""
-    with contextlib.suppress(OSError):
-        os.setpriority(os.PRIO_PROCESS, 0, 0)
-
-
 def _pub(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "overdrive.bus_cli", "pub", *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, preexec_fn=_as_stranger)
+                            start_new_session=True, preexec_fn=as_stranger)
 
 
 RAW_SESSIONS = """
@@ -104,7 +96,7 @@ def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path
                 [sys.executable, "-c", RAW_SESSIONS, launch.procs["vehicle-sim"].listen, endpoint,
                  str(folder), str(RAW_PUTS)], cwd=ROOT, stdout=subprocess.PIPE,
                 stderr=subprocess.PIPE, text=True, start_new_session=True,
-                preexec_fn=_as_stranger)
+                preexec_fn=as_stranger)
         launch.start()
         result = launch.run(on_tick=attack)
     outcomes = {name: (*p.communicate(timeout=LOADED_TIMEOUT_S), p.returncode)
