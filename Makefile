@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench clean coverage-gate interop
+.PHONY: run test test-under-load lint bench clean coverage-gate interop
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -35,6 +35,10 @@ test: lint
 
 interop: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider -m interop -rs
+
+# Issue 20: the whole suite while two busy loops occupy both cores (stopped by PID on any exit).
+test-under-load: $(STAMP)
+	scripts/test-under-load.sh
 
 coverage-gate: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider $(SAFETY_TESTS) --no-header \

@@ -97,6 +97,7 @@ class _Relay:
 
     def __init__(self, name: str, inbound: str, outbound: str) -> None:
         self.name, self.subscriptions, self.outbound = name, (inbound,), outbound
+        self.triggers = (inbound,)      # a command: step as soon as it arrives (issue 20)
 
     def step(self, _now_s: float, inbox):
         return [(self.outbound, msg) for _topic, msg in inbox]

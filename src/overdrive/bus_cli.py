@@ -24,6 +24,11 @@ EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
 NODE_CHOICES = ("move", "driving", "speed", "vehicle-sim", "xgv-client")
 PASSWORD_ENV = "OVERDRIVE_ZENOH_PASSWORD"
 CONNECT_WAIT_S = 5.0     # pub/echo retry this long for a launch that is still starting
+NO_LINK_HINT = " (a locked-down launch admits tools only with --run RUN_DIR, its credentials)"
+RUN_OPTION = click.option(
+    "--run", "run_dir", type=click.Path(file_okay=False, path_type=Path),
+    help="The run folder of a running `overdrive launch`: join it with that run's tool "
+         "credentials (endpoint and vehicle from there too).")
 
 
 def _usage(message: str) -> None:
@@ -121,10 +126,13 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
               help="user:password lines; each process authenticates as its node name.")
 @click.option("--no-plot", is_flag=True, help="Skip plot.png.")
 @click.option("--quiet", is_flag=True, help="Print only the run folder.")
+@click.option("--open-bus", is_flag=True,
+              help="No authentication or access rules (any local process can join and command "
+                   "the run). Default: per-run credentials and rules, locked down.")
 @_zenoh_options
 def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kills: tuple[str, ...],
-           credentials: str | None, no_plot: bool, quiet: bool, zenoh_config: str | None,
-           user: str | None, allow_remote: bool, vehicle: str) -> None:
+           credentials: str | None, no_plot: bool, quiet: bool, open_bus: bool,
+           zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
     from overdrive.launch import Launch, check_launchable
     from overdrive.run_files import OutDirError, make_out_dir
@@ -140,7 +148,7 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
         make_out_dir(out)
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
-                     plot=not no_plot, node_log=True)
+                     plot=not no_plot, node_log=True, secure=not open_bus)
     except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return
@@ -174,8 +182,34 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     raise SystemExit(result.exit_code)
 
 
+def _run_access(run_dir: Path | None, connect: tuple[str, ...], vehicle: str, user: str | None,
+                wait_s: float = CONNECT_WAIT_S) -> tuple[tuple[str, ...], str, str | None, str | None]:
+    """``(connect, vehicle, user, password)``: from ``--run`` (a locked-down launch's tool
+    credentials, waited for ``wait_s``: the run may be starting) when given, else from the
+    options and ``$OVERDRIVE_ZENOH_PASSWORD``."""
+    if run_dir is None:
+        return connect, vehicle, user, os.environ.get(PASSWORD_ENV)
+    from overdrive.bus.access import read_tool_credentials
+
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            creds = read_tool_credentials(run_dir)
+            break
+        except FileNotFoundError as exc:
+            if time.monotonic() > deadline:
+                click.echo(f"error: --run {run_dir}: {exc}", err=True)
+                raise SystemExit(EXIT_VIOLATION) from None
+            time.sleep(0.1)
+        except (OSError, ValueError, KeyError) as exc:
+            _usage(f"--run {run_dir}: {exc}")
+            raise AssertionError from exc   # unreachable: _usage exits
+    return connect or (creds["endpoint"],), creds["vehicle"], creds["user"], creds["password"]
+
+
 def _client(connect: tuple[str, ...], sender: str, vehicle: str, zenoh_config: str | None,
-            user: str | None, allow_remote: bool, wait_s: float = CONNECT_WAIT_S) -> Any:
+            user: str | None, allow_remote: bool, wait_s: float = CONNECT_WAIT_S,
+            password: str | None = None) -> Any:
     """A client session to a running launch; retries for ``wait_s`` (it may be starting)."""
     from overdrive.bus.zenoh_bus import open_bus
     from overdrive.launch import stack_registry
@@ -185,8 +219,8 @@ def _client(connect: tuple[str, ...], sender: str, vehicle: str, zenoh_config: s
         try:
             return open_bus(sender=sender, mode="client", connect=connect or (DEFAULT_ENDPOINT,),
                             vehicle=vehicle, registry=stack_registry(), base_file=zenoh_config,
-                            user=user, password=os.environ.get(PASSWORD_ENV),
-                            allow_remote=allow_remote, publishers=None)
+                            user=user, password=password, allow_remote=allow_remote,
+                            publishers=None)
         except ValueError:
             raise
         except Exception:               # ZError: nothing listening yet
@@ -207,11 +241,15 @@ def _client(connect: tuple[str, ...], sender: str, vehicle: str, zenoh_config: s
 @click.option("--wait-s", type=click.FloatRange(min=0.0), default=3.0, show_default=True,
               help="Wait this long for a subscriber before publishing.")
 @click.option("--connect", multiple=True, help=f"Endpoint (default {DEFAULT_ENDPOINT}).")
+@RUN_OPTION
 @_zenoh_options
 def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, rate_hz: float,
-        wait_s: float, connect: tuple[str, ...], zenoh_config: str | None, user: str | None,
-        allow_remote: bool, vehicle: str) -> None:
-    """Publish DATA (a JSON object) on TOPIC, like ``ros2 topic pub``."""
+        wait_s: float, connect: tuple[str, ...], run_dir: Path | None, zenoh_config: str | None,
+        user: str | None, allow_remote: bool, vehicle: str) -> None:
+    """Publish DATA (a JSON object) on TOPIC, like ``ros2 topic pub``.
+
+    A locked-down launch (the default) admits a tool only with ``--run RUN_DIR`` and lets it
+    write only ``events``; everything else is denied and counted in the run's summary."""
     from overdrive.bus.zenoh_bus import check_topic
     from overdrive.launch import stack_registry
 
@@ -230,10 +268,13 @@ def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, r
     except (msgspec.DecodeError, msgspec.ValidationError) as exc:
         _usage(f"DATA is not a valid {cls.__name__}: {exc}")
         return
+    connect, vehicle, user, password = _run_access(run_dir, connect, vehicle, user,
+                                                   max(wait_s, CONNECT_WAIT_S))
     try:
-        bus = _client(connect, sender, vehicle, zenoh_config, user, allow_remote, wait_s=wait_s)
+        bus = _client(connect, sender, vehicle, zenoh_config, user, allow_remote, wait_s=wait_s,
+                      password=password)
     except Exception as exc:  # Zenoh raises ZError for refused links
-        click.echo(f"error: cannot connect: {exc}", err=True)
+        click.echo(f"error: cannot connect: {exc}{NO_LINK_HINT}", err=True)
         raise SystemExit(EXIT_VIOLATION) from None
     try:
         publisher = bus.session.declare_publisher(f"overdrive/{vehicle}/{topic}")
@@ -259,21 +300,28 @@ def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, r
 @click.option("--timeout-s", type=click.FloatRange(min=0.0, min_open=True),
               help="Exit (code 1 if nothing came) after this long.")
 @click.option("--connect", multiple=True, help=f"Endpoint (default {DEFAULT_ENDPOINT}).")
+@RUN_OPTION
 @_zenoh_options
 def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[str, ...],
-         zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
-    """Print messages on TOPIC as JSON lines, like ``ros2 topic echo`` (``**`` matches all)."""
+         run_dir: Path | None, zenoh_config: str | None, user: str | None, allow_remote: bool,
+         vehicle: str) -> None:
+    """Print messages on TOPIC as JSON lines, like ``ros2 topic echo`` (``**`` matches all).
+
+    A locked-down launch (the default) admits a tool only with ``--run RUN_DIR``."""
     from overdrive.bus.wire import WireError
     from overdrive.bus.zenoh_bus import ALIVE
 
-    prefix = f"overdrive/{vehicle}/"
     if not topic or "//" in topic or topic.startswith("/"):
         _usage(f"invalid topic {topic!r}")
+    connect, vehicle, user, password = _run_access(
+        run_dir, connect, vehicle, user, timeout_s if timeout_s is not None else CONNECT_WAIT_S)
+    prefix = f"overdrive/{vehicle}/"
     try:
         bus = _client(connect, "echo", vehicle, zenoh_config, user, allow_remote,
-                      wait_s=timeout_s if timeout_s is not None else CONNECT_WAIT_S)
+                      wait_s=timeout_s if timeout_s is not None else CONNECT_WAIT_S,
+                      password=password)
     except Exception as exc:
-        click.echo(f"error: cannot connect: {exc}", err=True)
+        click.echo(f"error: cannot connect: {exc}{NO_LINK_HINT}", err=True)
         raise SystemExit(EXIT_VIOLATION) from None
     lines: list[bytes] = []
     lock = threading.Lock()
@@ -325,12 +373,39 @@ def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[
     raise SystemExit(EXIT_OK if printed or timeout_s is None else EXIT_VIOLATION)
 
 
+@click.command(hidden=True)
+@click.option("--public", required=True, help="The run's public endpoint, for tools.")
+@click.option("--listen", required=True, help="Private endpoint the launcher dials.")
+@click.option("--connect", multiple=True, help="Node endpoints to dial (repeat).")
+@click.option("--access", "access_dir", required=True,
+              type=click.Path(file_okay=False, exists=True, path_type=Path))
+@click.option("--report", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--vehicle", default=DEFAULT_VEHICLE, show_default=True)
+@click.option("--allow-remote", is_flag=True)
+def gate(public: str, listen: str, connect: tuple[str, ...], access_dir: Path,
+         report: Path | None, vehicle: str, allow_remote: bool) -> None:
+    """The tool gate of a locked-down launch (started by ``overdrive launch``)."""
+    from overdrive.bus.tool_gate import run_tool_gate
+    from overdrive.bus.zenoh_bus import _check_endpoint
+    from overdrive.launch import stack_registry
+
+    try:
+        for endpoint in (public, listen, *connect):
+            _check_endpoint(endpoint, allow_remote)
+    except ValueError as exc:
+        _usage(str(exc))
+    raise SystemExit(run_tool_gate(
+        public=public, listen=listen, connect=list(connect), vehicle=vehicle,
+        access_dir=access_dir, registry=stack_registry(), report_path=report,
+        password=os.environ.get(PASSWORD_ENV, "")))
+
+
 @click.group()
 def _main() -> None:
     """overdrive bus commands (node, launch, pub, echo)."""
 
 
-for _command in (node, launch, pub, echo):
+for _command in (node, launch, pub, echo, gate):
     _main.add_command(_command)
 
 __all__ = ["echo", "launch", "node", "pub"]

@@ -293,19 +293,30 @@ def topics_table() -> str:
     topics = sorted({t for t, _ in rates} | set(subscribers) | set(known),
                     key=lambda t: (list(vars(Topic).values()).index(t)
                                    if t in vars(Topic).values() else 99, t))
-    out = ["| topic | message | publisher: rate | subscribers |", "|---|---|---|---|"]
+    from overdrive.bus.delivery import CHAIN_TOPICS, COMMAND, delivery
+
+    out = ["| topic | message | publisher: rate | subscribers | delivery across processes |",
+           "|---|---|---|---|---|"]
     for topic in topics:
         pubs = sorted((p, hz) for (t, p), hz in rates.items() if t == topic)
         pub_text = (", ".join(f"{p}: {_rate_text(hz)}" for p, hz in pubs)
                     or "(nothing in the reference runs)")
         subs = ", ".join(sorted(subscribers.get(topic, ()))) or "(recorders only)"
-        out.append(f"| `{topic}` | {types.get(topic, '')} | {pub_text} | {subs} |")
+        kind = ("reliable, in order" if delivery(topic) == COMMAND
+                else "latest: a stale sample may drop")
+        if topic in CHAIN_TOPICS:
+            kind += "; wakes its receiver"
+        out.append(f"| `{topic}` | {types.get(topic, '')} | {pub_text} | {subs} | {kind} |")
     names = ", ".join(f"`{s['name']}`" for s in REFERENCE_SCENARIOS)
     out += ["", f"Measured on the lock-step runtime in the reference scenarios {names} "
                 "(`overdrive.docs.REFERENCE_SCENARIOS`); `scenario` is the scenario player "
                 "standing in for the planner, the other sources and the safety devices. "
                 "\"on events\": published when something happens (a command, a fault, a "
-                "rejection, a state change), not periodically."]
+                "rejection, a state change), not periodically. Delivery across processes "
+                "(`overdrive.bus.delivery`, docs/multiprocess.md): commands and events are "
+                "reliable and in order (congestion control BLOCK, high priority, a full inbox "
+                "is a `bus_overflow` fault); periodic state is best effort (DROP), superseded "
+                "by its next sample; a chain command wakes its receiving node at once."]
     if skipped:
         out.append(f"Not measured (their servers are not in this build): {', '.join(skipped)}.")
     return "\n".join(out) + "\n"

@@ -13,19 +13,31 @@ again only after it has recovered (mean back under half the threshold).
 
 Inboxes come from the bus: a ``SafeInbox`` (filled from Zenoh threads) is drained atomically;
 a plain list (``LocalBus``) is copied and cleared. A bus with ``pump()`` (taps, queued notices)
-is pumped on this thread before each round of steps.
+is pumped on this thread before each round of steps. Envelopes stamped with their send time on
+this clock (``Stamped``, from the Zenoh bus) reach the node with ``sent_s`` on its ``now_s`` axis.
+
+Event-driven steps (issue 20): a node also steps as soon as one of its *triggers* arrives
+(``node.triggers`` if it has that attribute, else the chain commands it subscribes to:
+``overdrive.bus.delivery.CHAIN_TOPICS``), so a command crosses a chain of processes without waiting a period
+per hop. Its periodic schedule then re-anchors one period after that step, so a node fed at its
+own rate runs once per period, in phase with its input, and never more than a period goes by
+without a step. Only inboxes that can wake the runtime (``SafeInbox``) trigger; with
+``LocalBus`` (and in the lock-step runtime) nothing changes.
 """
 
 from __future__ import annotations
 
 import math
 import statistics
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from overdrive.bus.delivery import trigger_topics
+from overdrive.bus.local import Stamped
 from overdrive.messages import Notice, Topic
 from overdrive.runtime import Node
 
@@ -33,6 +45,10 @@ LAG_WINDOW_STEPS = 100     # 1 s at 100 Hz: long enough to average scheduler jit
 LAG_THRESHOLD = 0.02       # issue 8: report when the mean period is more than 2 % slow
 SPIN_S = 0.0005            # busy-wait the last 0.5 ms (sleep overshoot ~0.05-0.1 ms, 2-core host)
 LATENESS_SAMPLES = 100_000  # lateness kept for percentiles (1000 s at 100 Hz)
+CATCH_UP_S = 0.001
+"""After a stall of more than a period (a loaded host did not run us), yield this long before
+stepping so the bus threads, starved with us, hand over what arrived meanwhile: otherwise the
+step reads a stale inbox and a watchdog times out on messages already received (issue 20)."""
 
 
 class LagMonitor:
@@ -84,6 +100,7 @@ class NodeStats:
     name: str
     period_s: float
     steps: int = 0
+    triggered: int = 0                    # steps taken at once on a trigger's arrival
     skipped: int = 0                      # scheduled steps dropped because the node fell behind
     max_step_s: float = 0.0               # longest time spent inside step()
     lateness_s: deque[float] = field(default_factory=lambda: deque(maxlen=LATENESS_SAMPLES))
@@ -95,7 +112,8 @@ class NodeStats:
             return round(late[min(len(late) - 1, int(q * len(late)))] * 1e3, 4) if late else 0.0
 
         return {
-            "period_s": self.period_s, "steps": self.steps, "skipped": self.skipped,
+            "period_s": self.period_s, "steps": self.steps, "triggered": self.triggered,
+            "skipped": self.skipped,
             "lateness_median_ms": round(statistics.median(late) * 1e3, 4) if late else 0.0,
             "lateness_p99_ms": pct(0.99), "lateness_max_ms": round(late[-1] * 1e3, 4) if late else 0.0,
             "max_step_ms": round(self.max_step_s * 1e3, 4),
@@ -107,22 +125,25 @@ class NodeStats:
 
 
 class _Slot:
-    __slots__ = ("due_s", "inbox", "k", "monitor", "node", "stats")
+    __slots__ = ("anchor_s", "due_s", "inbox", "k", "monitor", "node", "stats")
 
     def __init__(self, node: Node, inbox: Any, due_s: float, window: int, threshold: float) -> None:
         self.node, self.inbox, self.due_s = node, inbox, due_s
-        self.k = 0                      # step index: due_s = start + k * period_s, no float drift
+        self.anchor_s = 0.0             # schedule origin: the run's start, or the last triggered step
+        self.k = 0                      # step index: due_s = anchor_s + k * period_s, no float drift
         self.monitor = LagMonitor(node.period_s, window, threshold)
         self.stats = NodeStats(node.name, node.period_s)
 
 
-def _drain(inbox: Any) -> list[tuple[str, Any]]:
+def _drain(inbox: Any, start_s: float) -> list[tuple[str, Any]]:
+    """The envelopes received since the last step; send stamps moved onto the node's time axis."""
     drain = getattr(inbox, "drain", None)
-    if drain is not None:
-        return drain()
-    received = inbox[:]
-    inbox.clear()
-    return received
+    if drain is None:
+        received = inbox[:]
+        inbox.clear()
+        return received
+    return [Stamped(e[0], e[1], e.sent_s - start_s) if isinstance(e, Stamped) else e
+            for e in drain()]
 
 
 class WallRuntime:
@@ -131,7 +152,8 @@ class WallRuntime:
     def __init__(self, nodes: Sequence[Node], bus: Any, *,
                  clock: Callable[[], float] = time.monotonic,
                  sleep: Callable[[float], None] = time.sleep, spin_s: float = SPIN_S,
-                 lag_window: int = LAG_WINDOW_STEPS, lag_threshold: float = LAG_THRESHOLD) -> None:
+                 lag_window: int = LAG_WINDOW_STEPS, lag_threshold: float = LAG_THRESHOLD,
+                 event_driven: bool = True) -> None:
         for node in nodes:
             if not node.period_s > 0:
                 raise ValueError(f"node {node.name}: period_s must be positive")
@@ -139,6 +161,17 @@ class WallRuntime:
         self.clock, self.sleep, self.spin_s = clock, sleep, spin_s
         self._slots = [_Slot(n, bus.subscribe(n.subscriptions), 0.0, lag_window, lag_threshold)
                        for n in nodes]
+        self._wake: threading.Event | None = None
+        """Set by a bus thread when a trigger arrives (only with inboxes that support it)."""
+        for slot in self._slots if event_driven else ():
+            node = slot.node
+            triggers = getattr(node, "triggers", None)
+            triggers = trigger_topics(node.subscriptions) if triggers is None else tuple(triggers)
+            if triggers and hasattr(slot.inbox, "wake"):
+                if self._wake is None:
+                    self._wake = threading.Event()
+                slot.inbox.triggers = frozenset(triggers)
+                slot.inbox.wake = self._wake
         self.start_s: float | None = None
         self._stop = False
         self.lag_notices: list[Notice] = []
@@ -154,13 +187,19 @@ class WallRuntime:
     def stats(self) -> dict[str, dict[str, Any]]:
         return {s.node.name: s.stats.report(s.monitor) for s in self._slots}
 
-    def _wait_until(self, deadline_s: float) -> None:
-        clock = self.clock
+    def _wait_until(self, deadline_s: float) -> bool:
+        """Sleep, then spin, until ``deadline_s``; True at once if a trigger arrives first."""
+        clock, wake = self.clock, self._wake
         remaining = deadline_s - clock()
         if remaining > self.spin_s:
-            self.sleep(remaining - self.spin_s)
+            if wake is None:
+                self.sleep(remaining - self.spin_s)
+            elif wake.wait(remaining - self.spin_s):
+                return True
         while clock() < deadline_s and not self._stop:
-            pass
+            if wake is not None and wake.is_set():
+                return True
+        return False
 
     def run(self, duration_s: float | None = None,
             on_tick: Callable[[float], Any] | None = None,
@@ -183,15 +222,30 @@ class WallRuntime:
         slots = self._slots
         for slot in slots:
             period = slot.node.period_s
+            slot.anchor_s = start
             slot.k = 0 if now <= start else math.ceil((now - start) / period - 1e-9)
             slot.due_s = start + slot.k * period
+        wake = self._wake
         while not self._stop:
             due = min(s.due_s for s in slots)
             if due > end + 1e-9:
                 break
-            self._wait_until(due)
+            woken = self._wait_until(due)
             if self._stop:
                 break
+            if woken:
+                assert wake is not None
+                wake.clear()
+                t = clock()
+                if t < start:              # before the shared epoch: the first step will read it
+                    continue
+                if pump is not None:
+                    pump()
+                for slot in slots:
+                    if getattr(slot.inbox, "triggered", False):
+                        slot.stats.triggered += 1
+                        self._step(slot, t, start, publish, after_step, scheduled=False)
+                continue
             if on_tick is not None:
                 on_tick(due - start)
             if pump is not None:
@@ -199,27 +253,40 @@ class WallRuntime:
             for slot in slots:
                 if slot.due_s > due + 1e-9:
                     continue
+                self._step(slot, clock(), start, publish, after_step, scheduled=True)
+
+    def _step(self, slot: _Slot, t: float, start: float, publish: Callable[[str, Any], None],
+              after_step: Callable[[Node, float], Any] | None, scheduled: bool) -> None:
+        """Step one node at clock time ``t``, publish its outputs, then schedule its next step."""
+        clock = self.clock
+        node, stats = slot.node, slot.stats
+        period = node.period_s
+        if scheduled:
+            stats.lateness_s.append(t - slot.due_s)
+            if t - slot.due_s > period and hasattr(slot.inbox, "drain"):
+                self.sleep(CATCH_UP_S)
                 t = clock()
-                node, stats = slot.node, slot.stats
-                stats.lateness_s.append(t - slot.due_s)
-                now_s = t - start
-                outputs = node.step(now_s, _drain(slot.inbox))
-                for topic, msg in outputs:
-                    publish(topic, msg)
-                if slot.monitor.observe(t):
-                    self._report_lag(slot, now_s)
-                stats.steps += 1
-                stats.max_step_s = max(stats.max_step_s, clock() - t)
-                if after_step is not None:
-                    after_step(node, now_s)
-                slot.k += 1
-                slot.due_s = start + slot.k * node.period_s
-                behind = clock() - slot.due_s
-                if behind > node.period_s:
-                    missed = int(behind // node.period_s)
-                    stats.skipped += missed
-                    slot.k += missed
-                    slot.due_s = start + slot.k * node.period_s
+        now_s = t - start
+        outputs = node.step(now_s, _drain(slot.inbox, start))
+        for topic, msg in outputs:
+            publish(topic, msg)
+        if slot.monitor.observe(t):
+            self._report_lag(slot, now_s)
+        stats.steps += 1
+        stats.max_step_s = max(stats.max_step_s, clock() - t)
+        if after_step is not None:
+            after_step(node, now_s)
+        if scheduled:
+            slot.k += 1
+        else:                           # re-anchor: the next periodic step one period after this one
+            slot.anchor_s, slot.k = t, 1
+        slot.due_s = slot.anchor_s + slot.k * period
+        behind = clock() - slot.due_s
+        if behind > period:
+            missed = int(behind // period)
+            stats.skipped += missed
+            slot.k += missed
+            slot.due_s = slot.anchor_s + slot.k * period
 
     def _report_lag(self, slot: _Slot, now_s: float) -> None:
         m = slot.monitor

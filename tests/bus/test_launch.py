@@ -12,8 +12,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -22,6 +20,7 @@ from overdrive.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, free_port, launc
 from overdrive.messages import Topic
 from overdrive.scenario import Scenario, load_scenario, parse_scenario
 from overdrive.sim import run_scenario
+from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
 
 pytestmark = pytest.mark.wallclock   # real time: run on an idle machine (Makefile)
 
@@ -38,31 +37,6 @@ DRIVING_SCENARIO = {
     ],
     "expect": [{"final_speed_below_mps": 0.05}, {"no_contact": True}],
 }
-
-
-def _processes_mentioning(marker: str) -> list[int]:
-    found = []
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit() or int(pid) == os.getpid():
-            continue
-        with contextlib.suppress(OSError):
-            if marker in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace"):
-                found.append(int(pid))
-    return found
-
-
-@pytest.fixture
-def run_dir(tmp_path: Path) -> Iterator[Path]:
-    """A run folder; afterwards no process may still mention it (nodes get it via --report)."""
-    yield tmp_path
-    deadline = time.monotonic() + 5.0
-    while _processes_mentioning(str(tmp_path)) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    left = _processes_mentioning(str(tmp_path))
-    for pid in left:
-        with contextlib.suppress(ProcessLookupError):
-            os.kill(pid, signal.SIGKILL)
-    assert not left, f"processes left behind: {left}"
 
 
 def _distance_m(a: dict, b: dict) -> float:
@@ -85,14 +59,14 @@ def test_demo_over_processes_matches_embedded_run_and_pub_echo_work(run_dir: Pat
          "--out", str(out), "--listen", endpoint, "--quiet"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        echo = _cli("echo", "vehicle/status", "--connect", endpoint, "--count", "3",
+        echo = _cli("echo", "vehicle/status", "--run", str(out), "--count", "3",
                     "--timeout-s", "20")
         assert echo.returncode == 0, echo.stderr
         lines = [json.loads(line) for line in echo.stdout.splitlines()]
         assert len(lines) == 3 and {d["topic"] for d in lines} == {"vehicle/status"}
         assert {d["sender"] for d in lines} == {"vehicle"} and "gear" in lines[0]["data"]
         note = _cli("pub", "events", json.dumps({"kind": "note", "source": "cli", "reason": "hello"}),
-                    "--connect", endpoint)
+                    "--run", str(out))
         assert note.returncode == 0, note.stderr
         bad = _cli("pub", "vehicle/pedals", '{"throttle_pct": "lots"}', "--connect", endpoint)
         assert bad.returncode == 2 and "PedalCommand" in bad.stderr
@@ -108,17 +82,27 @@ def test_demo_over_processes_matches_embedded_run_and_pub_echo_work(run_dir: Pat
     assert _distance_m(summary, embedded) < FINAL_TOLERANCE_M, (summary["final"], embedded["final"])
     assert (out / "trace.csv").stat().st_size > 0 and (out / "plot.png").exists()
     assert any(e["kind"] == "note" and e.get("reason") == "hello" for e in summary["events"])
-    steps = summary["launch"]["nodes"]["vehicle-sim"]["runtime"]["steps"]
+    nodes = summary["launch"]["nodes"]
+    steps = nodes["vehicle-sim"]["runtime"]["steps"]
     assert steps >= round(scenario.spec.duration_s / 0.01) - 10
+    for name, report in nodes.items():    # event-driven steps: one per command, never a storm
+        runtime = report["runtime"]
+        assert runtime["triggered"] <= 4 * scenario.spec.duration_s / 0.01, (name, runtime)
+        assert report["bus"]["overflow"] == {}, (name, report["bus"])
+    assert not (out / "nodes" / "access").exists(), "the run's credentials die with it"
 
 
-def test_driving_module_scenario_over_processes_matches_embedded_run_and_refuses_rogues(
+@retry_when_stalled
+def test_open_bus_driving_scenario_matches_embedded_run_and_refuses_rogue_senders(
         run_dir: Path) -> None:
-    scenario = parse_scenario(DRIVING_SCENARIO, "driving-two-sources")
+    """``--open-bus``: no authentication, the bus's sender policy still refuses a tool."""
+    # 4 s beyond the embedded stop (~11.5 s): the comparison is of where the vehicle comes to
+    # rest (the authorization's end), not a race against the clock on a loaded host
+    scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 16}, "driving-two-sources")
     embedded = run_scenario(scenario, plot=False).summary
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     rogue: list[subprocess.Popen] = []
-    with Launch(scenario, run_dir / "run", listen=endpoint, plot=False) as launch:
+    with Launch(scenario, run_dir / "run", listen=endpoint, plot=False, secure=False) as launch:
         def pub_rogue_pedals(now_s: float) -> None:
             if now_s > 3.0 and not rogue:       # full throttle from a tool, mid-drive (not blocking)
                 rogue.append(subprocess.Popen(
@@ -126,7 +110,7 @@ def test_driving_module_scenario_over_processes_matches_embedded_run_and_refuses
                      json.dumps({"throttle_pct": 100, "brake_pct": 0, "source": "cli"}),
                      "--connect", endpoint, "--count", "20", "--rate", "100", "--wait-s", "0"],
                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                    start_new_session=True))
+                    start_new_session=True, preexec_fn=as_stranger))
         launch.start()
         try:
             result = launch.run(on_tick=pub_rogue_pedals)
@@ -134,6 +118,7 @@ def test_driving_module_scenario_over_processes_matches_embedded_run_and_refuses
             for p in rogue:
                 p.communicate(timeout=20)
     summary = result.summary
+    check_undisturbed(summary)
     assert rogue and rogue[0].returncode == 0, rogue[0].stderr if rogue else "never published"
     rejected = [e for e in summary["events"] if e["kind"] == "rejected" and e.get("code") == "publisher"]
     assert {e["source"] for e in rejected} == {"vehicle", "scenario"}, "each receiving bus refused"
@@ -149,6 +134,7 @@ def _kill_run(scenario: Scenario, run_dir: Path, victim: str, at_s: float,
               extra: tuple = ()) -> tuple[dict, list[list[str]]]:
     result = launch_scenario(scenario, run_dir / "run", listen="", plot=False,
                              actions=[(at_s, "kill", victim), *extra])
+    check_undisturbed(result.summary)
     rows = [line.split(",") for line in (run_dir / "run" / "trace.csv").read_text().splitlines()]
     return result.summary, rows
 
@@ -166,6 +152,7 @@ def _stopped_at_s(rows: list[list[str]], after_s: float) -> tuple[float, float]:
     ("driving", 0.2, "speed"),                          # the speed server's client dies: SPSS watchdog
     ("speed", VEHICLE_COMMAND_TIMEOUT_S, "vehicle"),    # the speed server dies: vehicle command timeout
 ])
+@retry_when_stalled
 def test_a_dead_process_stops_the_vehicle_within_its_deadline(run_dir: Path, victim: str,
                                                               timeout_s: float, stopper: str) -> None:
     scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 6}, "kill")
@@ -183,6 +170,7 @@ def test_a_dead_process_stops_the_vehicle_within_its_deadline(run_dir: Path, vic
     assert any(v.startswith(f"process: {victim} died") for v in summary["violations"])
 
 
+@retry_when_stalled
 def test_killed_move_server_vehicle_stops_within_authorization_and_run_reports_it(run_dir: Path) -> None:
     scenario = parse_scenario({
         "name": "move-kill", "vehicle": "escape-hybrid", "start": "ready", "seed": 1,
@@ -198,6 +186,7 @@ def test_killed_move_server_vehicle_stops_within_authorization_and_run_reports_i
                 killed.append(now_s)
         launch.start()
         summary = launch.run(on_tick=kill_mid_drive).summary
+    check_undisturbed(summary)
     assert killed, "the vehicle never reached 3 m/s"
     rows = [line.split(",") for line in (run_dir / "run" / "trace.csv").read_text().splitlines()]
     stop_s, _speed = _stopped_at_s(rows, killed[0])
@@ -208,6 +197,7 @@ def test_killed_move_server_vehicle_stops_within_authorization_and_run_reports_i
     assert summary["violations"] == [f"process: move died (signal SIGKILL) at t={exits[0]['t_s']:.2f} s"]
 
 
+@retry_when_stalled
 def test_restarted_speed_server_rejoins_cleanly(run_dir: Path) -> None:
     scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 7}, "restart")
     with Launch(scenario, run_dir / "run", listen="", plot=False,
@@ -215,11 +205,14 @@ def test_restarted_speed_server_rejoins_cleanly(run_dir: Path) -> None:
         launch.start()
         result = launch.run()
     summary = result.summary
+    check_undisturbed(summary)
     restarts = [e for e in summary["events"] if e["kind"] == "process_restart"]
     assert [e["node"] for e in restarts] == ["speed"]
     speed = result.reports["speed"]             # the report of the restarted process
+    assert "vehicle-sim" in result.reports, summary["launch"]["processes"]
     assert speed["epoch_monotonic_s"] == result.reports["vehicle-sim"]["epoch_monotonic_s"]
-    assert speed["runtime"]["steps"] > 100, "it ran on the shared schedule after rejoining"
+    # it ran after rejoining (a loaded host may take seconds to start Python and import)
+    assert speed["runtime"]["steps"] > 0
     assert speed["bus"]["decode_errors"] == {} and speed["bus"]["rejected"] == {}
     assert summary["launch"]["processes"]["speed"]["starts"] == 2
     assert result.reports["vehicle-sim"]["command_timeouts"] == 1

@@ -8,12 +8,35 @@ subscribers, so no node knows about faults.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
 Envelope = tuple[str, Any]
 Inbox = list[Envelope]
 Tap = Callable[[str, Any], None]
+
+
+class Stamped(tuple):
+    """An inbox envelope ``(topic, msg)`` that also carries ``sent_s``, its send time.
+
+    It unpacks and compares like the pair, so nodes that ignore send times see no difference.
+    ``sent_s`` is on the clock of the receiving node's ``now_s`` (the wall-clock runtime converts
+    it); the lock-step runtime delivers plain pairs, sent in the tick that reads them.
+    """
+
+    sent_s: float
+
+    def __new__(cls, topic: str, msg: Any, sent_s: float) -> Stamped:
+        self = super().__new__(cls, (topic, msg))
+        self.sent_s = sent_s
+        return self
+
+
+def sent_time_s(envelope: Envelope, now_s: float) -> float:
+    """When ``envelope`` was sent on ``now_s``'s clock: its stamp, or ``now_s`` without one."""
+    sent_s = getattr(envelope, "sent_s", now_s)
+    return sent_s if math.isfinite(sent_s) else now_s
 
 
 class ChannelModel(Protocol):

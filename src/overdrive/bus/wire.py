@@ -1,9 +1,11 @@
 """Wire format of bus messages between processes: a small versioned msgpack envelope.
 
-A frame is the msgpack array ``[schema_version, type_name, sender, payload]`` where
+A frame is the msgpack array ``[schema_version, type_name, sender, payload, sent_s]`` where
 ``payload`` is the message struct encoded as a msgpack map (field names kept, so a frame is
 self-describing and readable by any msgpack tool). ``sender`` is the publishing node's name,
-checked by the receiving bus against its publisher policy. Decoding is two-step: the envelope
+checked by the receiving bus against its publisher policy. ``sent_s`` is the send time on the
+publisher's CLOCK_MONOTONIC (one clock for every process on a host; docs/multiprocess.md), put
+there by the bus at publication; frames without it (4 elements, older writers) decode with NaN. Decoding is two-step: the envelope
 first (payload kept raw), then the payload with the decoder of the named type, so an unknown
 type or a frame from another schema version is refused before its payload is looked at.
 
@@ -13,6 +15,7 @@ drops such frames, so a malformed frame never reaches a node.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import msgspec
@@ -64,6 +67,7 @@ class Frame(msgspec.Struct, array_like=True, frozen=True):
     type: str
     sender: str
     payload: msgspec.Raw
+    sent_s: float = float("nan")
 
 
 class WireError(ValueError):
@@ -137,15 +141,21 @@ class Registry:
     def type_named(self, name: str) -> type:
         return self._types[name]
 
-    def encode(self, msg: Any, sender: str) -> bytes:
+    def encode(self, msg: Any, sender: str, sent_s: float = float("nan")) -> bytes:
         name = type(msg).__name__
         if self._types.get(name) is not type(msg) and not (
                 self._discover() and self._types.get(name) is type(msg)):
             raise TypeError(f"{name} is not a registered message type")
-        return self._encoder.encode((SCHEMA_VERSION, name, sender, msg))
+        return self._encoder.encode((SCHEMA_VERSION, name, sender, msg, sent_s))
 
     def decode(self, data: bytes | bytearray | memoryview, topic: str | None = None) -> tuple[str, Any]:
         """Return ``(sender, message)``; raise ``WireError`` for anything that is not a valid frame."""
+        sender, msg, _sent_s = self.decode_stamped(data, topic)
+        return sender, msg
+
+    def decode_stamped(self, data: bytes | bytearray | memoryview,
+                       topic: str | None = None) -> tuple[str, Any, float]:
+        """``decode`` plus the frame's send time (NaN when absent or not finite)."""
         if len(data) > MAX_FRAME_BYTES:
             raise WireError("too_large", f"{len(data)} bytes")
         try:
@@ -166,7 +176,8 @@ class Registry:
             msg = decoder.decode(frame.payload)
         except (msgspec.MsgspecError, ValueError) as exc:   # incl. invalid UTF-8 in a str
             raise WireError("payload", str(exc)) from None
-        return frame.sender, msg
+        sent_s = frame.sent_s if math.isfinite(frame.sent_s) else math.nan
+        return frame.sender, msg, sent_s
 
 
 __all__ = ["MAX_FRAME_BYTES", "TOPIC_TYPES", "Frame", "Registry", "WireError"]

@@ -5,9 +5,19 @@ Key expressions are ``overdrive/<vehicle>/<topic>``, e.g. ``overdrive/ego/speed/
 vehicles share one network). Liveliness tokens ``overdrive/<vehicle>/_alive/<node>`` say which
 nodes are up. Payloads are ``overdrive.bus.wire`` frames.
 
-Delivery: Zenoh calls the subscriber callbacks on its own threads; each callback decodes the
-frame, checks the sender against the publisher policy and appends ``(topic, msg)`` to a
-``SafeInbox`` under a lock. The runtime drains the inbox (one swap under the lock) before each
+Delivery by kind of message (``DELIVERY``, documented per topic in docs/architecture.md):
+commands and events are published reliable, in order, with blocking congestion control at a
+high priority (a full Zenoh transmit queue holds the publisher back instead of dropping; a link
+that stays blocked for ``BLOCK_CLOSE_US`` is closed, which the liveliness tokens report);
+periodic state is published best-effort with congestion control ``DROP``, so a stale sample
+may be lost under load and the next one replaces it. On the receiving side each node's inbox is
+bounded (``INBOX_CAPACITY``): when it is full a state sample makes room by dropping the oldest
+state sample (counted as ``stale_dropped``); a command that finds no room is an explicit fault:
+counted as ``overflow`` and reported once per topic as ``Notice(kind="fault", code="bus_overflow")``.
+
+Zenoh calls the subscriber callbacks on its own threads; each callback decodes the
+frame, checks the sender against the publisher policy and appends a ``Stamped`` ``(topic,
+msg)`` (with the frame's send time) to a ``SafeInbox`` under a lock. The runtime drains the inbox (one swap under the lock) before each
 step, so a node still sees the messages received since its last step, in arrival order. Taps
 (recording, ``overdrive echo``) are queued the same way and delivered by ``pump()`` on the
 runtime's thread, never on a Zenoh thread.
@@ -30,7 +40,9 @@ from __future__ import annotations
 import contextlib
 import ipaddress
 import json
+import math
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
@@ -39,7 +51,8 @@ from typing import Any
 import msgspec
 import zenoh
 
-from overdrive.bus.local import ChannelModel, Envelope, Tap
+from overdrive.bus.delivery import COMMAND, STATE, STATE_TOPICS, delivery
+from overdrive.bus.local import ChannelModel, Envelope, Stamped, Tap
 from overdrive.bus.wire import Registry, WireError
 from overdrive.messages import Notice, Topic
 
@@ -79,6 +92,16 @@ PUBLISHERS: dict[str, frozenset[str]] = {
     "sim/faults": SIM,
 }
 """Who may publish on each topic; topics not listed (``events``, extra topics) are open."""
+
+INBOX_CAPACITY = 1024
+"""Envelopes a node's inbox holds: ~1 s of everything the busiest node (the recorder) receives
+(~900 messages/s in a whole-stack run), 100 periods of a 10 ms node; beyond it a node is stalled."""
+TAP_CAPACITY = 65_536
+"""Envelopes queued for taps (the recorder sees every message): ~60 s of a whole-stack run, so a
+launcher stalled for seconds on a loaded host loses nothing (~100 B each: ~7 MB at most)."""
+BLOCK_CLOSE_US = 5_000_000
+"""A command publisher blocked this long closes the link (Zenoh's default, stated explicitly):
+long enough for a loaded 2-core host, and the vehicle's 200 ms command timeout stops it first."""
 
 SOURCE_MUST_MATCH = frozenset({Topic.PEDALS, Topic.STEER, Topic.POWERTRAIN})
 """Actuator commands carry ``source``; on the wire it must equal the envelope sender."""
@@ -138,6 +161,8 @@ def session_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: I
     config.insert_json5("connect/retry", json.dumps(CONNECT_RETRY))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("transport/link/tx/queue/congestion_control/block/wait_before_close",
+                        str(BLOCK_CLOSE_US))
     if user is not None:
         config.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
         config.insert_json5("transport/auth/usrpwd/password", json.dumps(password or ""))
@@ -145,22 +170,49 @@ def session_config(*, mode: str = "peer", listen: Iterable[str] = (), connect: I
 
 
 class SafeInbox:
-    """A node's inbox filled from other threads: ``append`` and ``drain`` under one lock."""
+    """A node's inbox filled from other threads: ``append`` and ``drain`` under one lock.
 
-    __slots__ = ("_items", "_lock")
+    Bounded by ``capacity`` (see the module doc). ``triggers``: topics whose arrival sets
+    ``wake`` and ``triggered`` so an event-driven runtime steps the node at once.
+    """
 
-    def __init__(self) -> None:
+    __slots__ = ("_items", "_lock", "capacity", "triggered", "triggers", "wake")
+
+    def __init__(self, capacity: int = INBOX_CAPACITY) -> None:
         self._items: deque[Envelope] = deque()
         self._lock = threading.Lock()
+        self.capacity = capacity
+        self.triggers: frozenset[str] = frozenset()
+        self.wake: threading.Event | None = None
+        self.triggered = False
 
-    def append(self, envelope: Envelope) -> None:
+    def append(self, envelope: Envelope) -> str:
+        """Queue ``envelope``; returns ``""``, ``"stale_dropped"`` or ``"overflow"`` (refused)."""
+        outcome = ""
         with self._lock:
-            self._items.append(envelope)
+            items = self._items
+            if len(items) >= self.capacity:
+                for i, (topic, _msg) in enumerate(items):
+                    if topic in STATE_TOPICS:
+                        del items[i]
+                        outcome = "stale_dropped"
+                        break
+                else:
+                    if envelope[0] not in STATE_TOPICS:
+                        return "overflow"
+                    return "stale_dropped"   # the newest state sample, when nothing older can go
+            items.append(envelope)
+            if envelope[0] in self.triggers:
+                self.triggered = True
+                if self.wake is not None:
+                    self.wake.set()
+        return outcome
 
     def drain(self) -> list[Envelope]:
         """Everything received since the last drain, in arrival order."""
         with self._lock:
             items, self._items = self._items, deque()
+            self.triggered = False
         return list(items)
 
     def __len__(self) -> int:
@@ -176,12 +228,16 @@ class BusStats:
         self.decode_errors: dict[str, int] = {}         # reason -> count
         self.rejected: dict[str, int] = {}              # "topic from sender" -> count
         self.unencodable: dict[str, int] = {}           # type name -> publications dropped
+        self.overflow: dict[str, int] = {}              # topic -> commands refused, inbox full
+        self.stale_dropped: dict[str, int] = {}         # topic -> state samples dropped, inbox full
 
     def as_dict(self) -> dict[str, Any]:
         return {"published": self.published, "received": self.received,
                 "decode_errors": dict(sorted(self.decode_errors.items())),
                 "rejected": dict(sorted(self.rejected.items())),
-                "unencodable": dict(sorted(self.unencodable.items()))}
+                "unencodable": dict(sorted(self.unencodable.items())),
+                "overflow": dict(sorted(self.overflow.items())),
+                "stale_dropped": dict(sorted(self.stale_dropped.items()))}
 
 
 class ZenohBus:
@@ -190,13 +246,16 @@ class ZenohBus:
     def __init__(self, session: zenoh.Session, *, sender: str, vehicle: str = DEFAULT_VEHICLE,
                  registry: Registry | None = None,
                  publishers: Mapping[str, frozenset[str]] | None = PUBLISHERS,
-                 own_session: bool = False, express: bool = True) -> None:
+                 own_session: bool = False, express: bool = True,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.session = session
         self.sender = sender
         self.vehicle = vehicle
         self.registry = registry or Registry()
         self.publishers = publishers
         self.express = express
+        self.clock = clock
+        """Stamps each frame's ``sent_s``: CLOCK_MONOTONIC, shared by the processes of a host."""
         self.channel: ChannelModel | None = None
         """Channel faults between this process's publishers and the network (like LocalBus)."""
         self.stats = BusStats()
@@ -210,6 +269,8 @@ class ZenohBus:
         self._tap_queue: SafeInbox | None = None
         self._notices: deque[Notice] = deque()
         self._rejected_once: set[str] = set()
+        self._overflow_once: set[str] = set()
+        self._stamped_taps: list[Callable[[str, Any, float], None]] = []
         self._tokens: list[Any] = []
         self.closed = False
 
@@ -219,7 +280,7 @@ class ZenohBus:
         """Decode and police one sample; None (counted) when it must not be delivered."""
         topic = key[len(self._prefix):] if key.startswith(self._prefix) else key
         try:
-            sender, msg = self.registry.decode(payload, topic)
+            sender, msg, sent_s = self.registry.decode_stamped(payload, topic)
         except WireError as exc:
             with self._lock:
                 self.stats.decode_errors[exc.reason] = self.stats.decode_errors.get(exc.reason, 0) + 1
@@ -240,7 +301,7 @@ class ZenohBus:
             return None
         with self._lock:
             self.stats.received += 1
-        return topic, msg
+        return Stamped(topic, msg, sent_s)
 
     def _callback(self, inboxes: list[SafeInbox]) -> Callable[[zenoh.Sample], None]:
         def deliver(sample: zenoh.Sample) -> None:
@@ -252,8 +313,21 @@ class ZenohBus:
                 return
             if envelope is not None:
                 for inbox in inboxes:
-                    inbox.append(envelope)
+                    outcome = inbox.append(envelope)
+                    if outcome:
+                        self._count_full(outcome, envelope[0])
         return deliver
+
+    def _count_full(self, outcome: str, topic: str) -> None:
+        with self._lock:
+            counts = self.stats.overflow if outcome == "overflow" else self.stats.stale_dropped
+            counts[topic] = counts.get(topic, 0) + 1
+            first = outcome == "overflow" and topic not in self._overflow_once
+            self._overflow_once.add(topic)
+        if first:
+            self._notices.append(Notice(
+                kind="fault", source=self.sender, code="bus_overflow",
+                reason=f"{topic}: inbox full ({INBOX_CAPACITY} messages), command refused"))
 
     def subscribe(self, topics: tuple[str, ...] | list[str]) -> SafeInbox:
         """Return a new inbox that receives every message published on ``topics``."""
@@ -276,7 +350,7 @@ class ZenohBus:
         bus's decode and policy checks).
         """
         if self._tap_queue is None:
-            self._tap_queue = SafeInbox()
+            self._tap_queue = SafeInbox(TAP_CAPACITY)
             queue = [self._tap_queue]
             callback = self._callback(queue)
             alive = self._prefix + ALIVE + "/"
@@ -298,16 +372,27 @@ class ZenohBus:
         if self._tap_queue is None:
             return 0
         items = self._tap_queue.drain()
-        for topic, msg in items:
+        for envelope in items:
+            topic, msg = envelope
             for tap in self._taps:
                 tap(topic, msg)
+            if self._stamped_taps:
+                sent_s = getattr(envelope, "sent_s", math.nan)
+                for stamped in self._stamped_taps:
+                    stamped(topic, msg, sent_s)
         return len(items)
+
+    def tap_stamped(self, observer: Callable[[str, Any, float], None]) -> None:
+        """Like ``tap``, with the frame's send time on CLOCK_MONOTONIC as a third argument."""
+        if self._tap_queue is None:
+            self.tap(lambda _topic, _msg: None)
+        self._stamped_taps.append(observer)
 
     # ------------------------------------------------------------------ sending
 
     def publish(self, topic: str, msg: Any) -> None:
         if self._tap_queue is not None:
-            self._tap_queue.append((topic, msg))
+            self._tap_queue.append(Stamped(topic, msg, self.clock()))
         if self.channel is None:
             self._send(topic, msg)
             return
@@ -317,11 +402,18 @@ class ZenohBus:
     def _send(self, topic: str, msg: Any) -> None:
         publisher = self._publishers.get(topic)
         if publisher is None:
-            publisher = self._publishers[topic] = self.session.declare_publisher(
-                self._prefix + check_topic(topic), express=self.express,
-                congestion_control=zenoh.CongestionControl.DROP)
+            key = self._prefix + check_topic(topic)
+            if delivery(topic) == COMMAND:
+                publisher = self.session.declare_publisher(
+                    key, express=self.express, congestion_control=zenoh.CongestionControl.BLOCK,
+                    reliability=zenoh.Reliability.RELIABLE, priority=zenoh.Priority.INTERACTIVE_HIGH)
+            else:
+                publisher = self.session.declare_publisher(
+                    key, express=self.express, congestion_control=zenoh.CongestionControl.DROP,
+                    reliability=zenoh.Reliability.BEST_EFFORT, priority=zenoh.Priority.DATA)
+            self._publishers[topic] = publisher
         try:
-            frame = self.registry.encode(msg, self.sender)
+            frame = self.registry.encode(msg, self.sender, self.clock())
         except (TypeError, ValueError, OverflowError, msgspec.EncodeError):   # never crash the node
             name = type(msg).__name__
             self.stats.unencodable[name] = self.stats.unencodable.get(name, 0) + 1
@@ -375,5 +467,19 @@ def open_bus(*, sender: str, mode: str = "peer", listen: Iterable[str] = (),
                     publishers=publishers, own_session=True)
 
 
-__all__ = ["DEFAULT_ENDPOINT", "PUBLISHERS", "BusStats", "SafeInbox", "ZenohBus", "check_topic",
-           "key_for", "open_bus", "session_config"]
+__all__ = [
+    "COMMAND",
+    "DEFAULT_ENDPOINT",
+    "INBOX_CAPACITY",
+    "PUBLISHERS",
+    "STATE",
+    "STATE_TOPICS",
+    "BusStats",
+    "SafeInbox",
+    "ZenohBus",
+    "check_topic",
+    "delivery",
+    "key_for",
+    "open_bus",
+    "session_config",
+]

@@ -69,6 +69,9 @@ INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",
                 "runwait": "idle", "shifting": "idle"}
 """Goal assumed when the server starts in a state that cannot be requested."""
 TIME_EPS_S = 1e-9   # float slack when comparing simulated times built from integer ticks
+CLOCK_SKEW_MAX_S = 0.001
+"""An SPSS send stamp may lead ``now_s`` by this much (float rounding of one shared clock,
+docs/multiprocess.md); further ahead, its clock is not ours and it is timed from receipt."""
 
 
 class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -192,8 +195,8 @@ class SpeedServer:
 
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
-        for spss in requests:
-            client_fault_edge |= self._handle_request(now_s, spss, out)
+        for spss, sent_s in requests:
+            client_fault_edge |= self._handle_request(now_s, spss, out, sent_s)
             reply_faults.append((self.fault, self.fault_message))
         watchdog_edge = self._watchdog(now_s, out)
 
@@ -216,13 +219,27 @@ class SpeedServer:
 
     # ------------------------------------------------------------------ inputs
 
+    def _feed_watchdog(self, now_s: float, sent_s: float) -> None:
+        """Time the SPSS watchdog from the SPSS's send time (issue 20), never from the future.
+
+        Across processes an SPSS arrives after a hop; timing from its send time keeps the
+        emergency stop at 200 ms + one period after the last SPSS *sent*. A stamp ahead of
+        ``now_s`` by more than ``CLOCK_SKEW_MAX_S`` (a clock not shared) counts as received now.
+        """
+        if sent_s > now_s + CLOCK_SKEW_MAX_S:
+            sent_s = now_s
+        last_s = self.spss_watchdog.last_s
+        self.spss_watchdog.feed(min(now_s, sent_s if last_s is None else max(last_s, sent_s)))
+
     def _read_inputs(self, now_s: float, inbox: Sequence[tuple[str, Any]],
-                     out: list) -> list[SetSpeed]:
-        requests: list[SetSpeed] = []
+                     out: list) -> list[tuple[SetSpeed, float]]:
+        requests: list[tuple[SetSpeed, float]] = []
         handlers = self._handlers
-        for topic, msg in inbox:
+        for envelope in inbox:
+            topic, msg = envelope
             if topic == Topic.SET_SPEED and isinstance(msg, SetSpeed):
-                requests.append(msg)
+                sent_s = getattr(envelope, "sent_s", now_s)   # stamped across processes
+                requests.append((msg, sent_s if math.isfinite(sent_s) else now_s))
                 continue
             cls = type(msg)
             handler = handlers.get(cls)
@@ -308,14 +325,15 @@ class SpeedServer:
 
     # ------------------------------------------------------------------ requests
 
-    def _handle_request(self, now_s: float, spss: SetSpeed, out: list) -> bool:
+    def _handle_request(self, now_s: float, spss: SetSpeed, out: list,
+                        sent_s: float | None = None) -> bool:
         """Validate and apply one SPSS; return True on a new client fault.
 
         Only a well-formed request feeds the watchdog (a client fault is one: it asks for the
         stop). An invalid request is not executed and stops the vehicle (issue 17).
         """
         if spss.fault != 0:
-            self.spss_watchdog.feed(now_s)
+            self._feed_watchdog(now_s, now_s if sent_s is None else sent_s)
             new = spss.fault != self.client_fault
             self.client_fault = spss.fault
             if new:
@@ -338,7 +356,7 @@ class SpeedServer:
                 self.fault, self.fault_message, self.fault_since_s = code, message, now_s
             return False
         self.last_rejection = None
-        self.spss_watchdog.feed(now_s)
+        self._feed_watchdog(now_s, now_s if sent_s is None else sent_s)
         if self.latched:
             if self.sensor_lost or not self.stopped:
                 return False   # not executed: the e-stop holds until the vehicle has stopped
