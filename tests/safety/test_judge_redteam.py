@@ -255,13 +255,10 @@ def test_a_lowered_limit_is_not_demanded_faster_than_the_road_allows() -> None:
 
 def test_a_stop_at_cruise_stops_within_the_shortest_physical_stop() -> None:
     """Decided: issue 15 defines STOP as "stop now", judged against the shortest physical stop;
-    the stack meets it through issue 17's hard-braking path. Red team's finding, rule 1: docs/move-server.md defines STOP as "a controlled stop on
-    the ellipse's deceleration"; the judge reads STOP as "stop now" and holds it to the
-    shortest physical stop (full brake). Every STOP at speed fails: MOVE 100 m at 8 m/s,
-    replaced at 6.0 s, STOP at 6.05 s at 7.96 m/s: the stack stops in 8.15 m (~4 m/s^2),
-    the judge allows 4.83 m and reports a 3.32 m overrun. This is the strict xfail
-    ``test_reordered_stop_is_not_overtaken`` *without* the reorder: that xfail cannot be
-    flipped by issue 17's fix. Either the judge or the STOP semantics must change."""
+    the stack meets it through issue 17's hard-braking path. The red team's finding, rule 1:
+    docs/move-server.md then defined STOP as a controlled stop on the ellipse's deceleration,
+    and every STOP at speed failed: MOVE 100 m at 8 m/s, replaced at 6.0 s, STOP at 6.05 s at
+    7.96 m/s: the stack stopped in 8.15 m (~4 m/s^2) where 4.83 m was possible."""
     result = run(events=[
         {"at_s": 0.5, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},
         {"at_s": 6.0, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},

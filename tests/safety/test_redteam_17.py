@@ -1,8 +1,8 @@
 """Red team on issue 17 (latched interruptions, command ids, hard braking, anchoring).
 
-Each test here fails today because of a defect found by attacking the issue-17 implementation;
-each docstring says what it attacks and the figures measured (escape-hybrid unless named, seed 1,
-``start: ready``). Do not mark them xfail: each fix should flip one.
+Each test here failed against the first issue-17 implementation because of a defect found by
+attacking it, and is kept; each docstring says what it attacks and the figures measured then
+(escape-hybrid unless named, seed 1, ``start: ready``).
 """
 
 from __future__ import annotations
