@@ -663,6 +663,9 @@ def test_unanswered_commands_are_bounded_and_invalid_ones_ignored(monitor: Monit
     monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=500, distance_m=-1.0,
                                                     maxspeed_mps=1.0))
     assert 500 not in monitor._pending
+    for cid in range(1000, 1100):                      # STOPs issued but never delivered
+        monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=cid))
+    assert len(monitor._stops) == 64 and 1099 in monitor._stops and 1000 not in monitor._stops
 
 
 def test_a_reverse_advance_never_sets_the_direction(monitor: Monitor) -> None:
