@@ -463,3 +463,15 @@ def test_no_motion_after_an_interruption_over_jaus(kind: str) -> None:
     moved = float(rows[-1]["odometer_m"]) - next(float(r["odometer_m"]) for r in rows
                                                  if float(r["t_s"]) >= 12.0)
     assert 7.0 < moved <= 8.0
+
+
+
+@pytest.mark.parametrize("friction", [0.3, 0.5])
+@pytest.mark.parametrize("curvature", [0.02, 0.03])
+def test_no_hard_brake_in_a_long_curve_on_a_slippery_road(friction: float, curvature: float) -> None:
+    """Review of issue 17: a curve that uses up the ellipse made the "normal stop" look endless
+    and latched a full brake with 250 m authorized."""
+    result = run(world={"friction": friction}, events=[
+        {"at_s": 0.5, "move": {"distance_m": 300, "maxspeed_mps": 10, "curvature_1pm": curvature}}])
+    assert not [e for e in result.summary["events"] if e["kind"] == "hard_brake"]
+    no_violation(result, "authorization", "direction")

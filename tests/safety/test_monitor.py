@@ -729,3 +729,14 @@ def test_a_stop_binds_when_it_reaches_the_move_server(monitor: Monitor) -> None:
     lost.observe(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))   # dropped
     clock.path([10.0, 20.0], speed_mps=5.0)
     assert rules(lost) == {}
+
+
+def test_a_stop_never_delivered_is_noted_not_judged(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0, maxspeed_mps=12.0))
+    monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=7))
+    for i in range(105):
+        clock.at(0.05 * i, 5.0)
+    assert [n["kind"] for n in monitor.notes] == ["stop_not_delivered"]
+    assert monitor.notes[0]["command"] == "STOP #7" and not monitor._stops

@@ -118,7 +118,7 @@ def test_an_older_or_repeated_authorization_from_a_source_is_refused(preset) -> 
     status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
     assert status.authorized_m == pytest.approx(5.0), "the newer, shorter one stands"
     rejected = [m for _, topic, m in out if topic == Topic.NOTICE and m.kind == "rejected"]
-    assert len(rejected) == 1 and "reordered or repeated" in rejected[0].reason
+    assert len(rejected) == 1 and "reordered" in rejected[0].reason
     other = AdvanceAuthorization(source="map", distance_m=3.0, issued_s=0.52)
     out, _ = drive(node, 0.6, 0.01, 0.0, odo, [(Topic.ADVANCE, other)])
     status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
@@ -135,3 +135,31 @@ def test_an_older_speed_limit_from_a_source_is_refused(preset) -> None:
                    [(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=9.0, issued_s=-0.05))])
     status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
     assert status.speed_limit_mps == pytest.approx(2.0)
+
+
+
+def test_the_last_of_equal_stamps_wins(preset) -> None:
+    """Two messages from one source with the same stamp (two events at the same at_s): the
+    later one stands, as before ordering existed; a shorter one is never refused for it."""
+    node = DrivingModule(preset)
+    out, _ = drive(node, 0.5, 0.02, 0.0, 0.0, [
+        (Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=60.0, issued_s=0.5)),
+        (Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=3.0, issued_s=0.5))])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == pytest.approx(3.0)
+
+
+def test_a_future_dated_message_does_not_block_its_source(preset) -> None:
+    from overdrive.messages import MaxSpeed
+
+    node = DrivingModule(preset)
+    future = [(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=50.0, issued_s=1e6)),
+              (Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=30.0, issued_s=1e6))]
+    out, odo = drive(node, 1.0, 0.02, 0.0, 0.0, future)
+    reasons = [m.reason for _, topic, m in out if topic == Topic.NOTICE and m.kind == "rejected"]
+    assert any("future" in r for r in reasons) and len(reasons) == 2
+    out, _ = drive(node, 1.02, 0.02, 0.0, odo, [
+        (Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=7.0, issued_s=1.02)),
+        (Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=3.0, issued_s=1.02))])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == pytest.approx(7.0) and status.speed_limit_mps == pytest.approx(3.0)

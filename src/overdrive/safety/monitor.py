@@ -87,6 +87,8 @@ MOVE_SERVER_SOURCE = "move"   # advance / max-speed re-published by the move ser
                               # (a reserved source name: scenario files may not use it)
 MANUAL = frozenset({"manual-override", "emergency-manual-override", "manual-speed"})
 PENDING_MAX = 64              # planner commands awaiting the move server's reply, at most
+STOP_DELIVERY_S = 1.0         # a STOP not delivered within this is noted as lost (the anchoring
+                              # bound of servers.anchoring: later it would be stale anyway)
 
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
     Topic.MOVE_COMMAND: ("distance_m", "maxspeed_mps", "curvature_1pm"),
@@ -575,7 +577,16 @@ class Monitor:
 
     def tick(self, now_s: float) -> None:
         """Time-based checks, after every node has stepped at ``now_s``: from the deadline on,
-        the speed server's pedals must be the emergency stop until an SPSS is delivered."""
+        the speed server's pedals must be the emergency stop until an SPSS is delivered; a STOP
+        not delivered within ``STOP_DELIVERY_S`` is noted (the stack never had it)."""
+        if self._stops:
+            for command_id, issued_s in list(self._stops.items()):
+                if now_s - issued_s > STOP_DELIVERY_S + EPS_S:
+                    del self._stops[command_id]
+                    self.notes.append({"t_s": round(issued_s, 3), "kind": "stop_not_delivered",
+                                       "command": f"STOP #{command_id}",
+                                       "reason": f"not delivered to the move server within "
+                                                 f"{STOP_DELIVERY_S:.1f} s: not judged"})
         if self.last_spss_s is None:
             return
         deadline_s = self.last_spss_s + WATCHDOG_S + self.period_s

@@ -285,6 +285,11 @@ class SpeedLimits:
         return any(now_s - received_s > self.ttl_s + TIME_EPS_S
                    for _, received_s in self.by_source.values())
 
+    def lowest_live_mps(self, now_s: float) -> float:
+        """Lowest limit of the sources still heard (lapsed ones left out)."""
+        return min((speed_mps for speed_mps, received_s in self.by_source.values()
+                    if now_s - received_s <= self.ttl_s + TIME_EPS_S), default=math.inf)
+
     def lowest_mps(self, now_s: float) -> float:
         """Lowest limit, a lapsed source counting as 0; ``inf`` when no source was ever heard."""
         lowest = math.inf
@@ -484,7 +489,22 @@ class DrivingModule:
         if reason:
             self._reject("max_speed", reason, out)
         elif self._in_order(("max_speed", msg.source), msg.issued_s, out):
+            why = self._dated(msg.issued_s, now_s)
+            if why:
+                self._reject("max_speed", f"max_speed from {msg.source!r}: {why}", out)
+                return
+            self._taken(("max_speed", msg.source), msg.issued_s)
             self.limits.update(msg.source, float(msg.speed_mps), now_s)
+
+    def _dated(self, issued_s: float | None, now_s: float) -> str:
+        """Why a stamp is stale or future-dated (the anchoring bounds), or ""."""
+        if issued_s is None:
+            return ""
+        if issued_s > now_s + self.history.skew_s:
+            return f"issued at t={issued_s:.3f} s, in the future (now t={now_s:.3f} s)"
+        if now_s - issued_s > self.history.max_age_s:
+            return f"issued {now_s - issued_s:.3f} s ago: stale"
+        return ""
 
     def _advance(self, now_s: float, msg: Any, out: list) -> None:
         reason = validate_advance(msg)
@@ -494,26 +514,32 @@ class DrivingModule:
             self._arrived.append(msg)
 
     def _in_order(self, key: tuple, issued_s: float | None, out: list) -> bool:
-        """False for a message not newer than the last taken from its source (``key``): it was
-        reordered or repeated on the way (one notice per run of them)."""
+        """False for a message older than the last taken from its source (``key``): it was
+        reordered on the way (one notice per run of them). An equal stamp is taken (the last
+        word wins; anchoring makes a repeat harmless)."""
         if issued_s is None:
             return True
         newest = self._newest_issue.get(key)
-        if newest is not None and issued_s <= newest:
+        if newest is not None and issued_s < newest:
             if key not in self._out_of_order:
                 self._out_of_order.add(key)
                 self._reject(key[0], f"{key[0]} from {key[1]!r} issued at t={issued_s:.3f} s is "
-                                     f"not newer than t={newest:.3f} s: reordered or repeated", out)
+                                     f"older than t={newest:.3f} s: reordered", out)
             return False
-        self._newest_issue[key] = issued_s
-        self._out_of_order.discard(key)
         return True
+
+    def _taken(self, key: tuple, issued_s: float | None) -> None:
+        """Record an accepted message's stamp (a refused one never blocks its source)."""
+        if issued_s is not None:
+            self._newest_issue[key] = issued_s
+            self._out_of_order.discard(key)
 
     def _apply_advances(self, now_s: float, out: list) -> None:
         """This period's authorizations, each counted from where the vehicle was when it was
         issued; a stale or future-dated one is refused and its source holds at 0 (fail-safe)."""
         for msg in self._arrived:
-            if not self._in_order(("advance", msg.source, msg.reverse), msg.issued_s, out):
+            key = ("advance", msg.source, msg.reverse)
+            if not self._in_order(key, msg.issued_s, out):
                 continue
             odometer0 = self.odometer_m
             if msg.issued_s is not None:
@@ -525,6 +551,7 @@ class DrivingModule:
                     self.authorizations.update(msg.source, msg.reverse, 0.0, self.odometer_m)
                     continue
                 odometer0 = anchored
+            self._taken(key, msg.issued_s)
             self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m), odometer0)
         self._arrived.clear()
 
@@ -610,7 +637,9 @@ class DrivingModule:
                                             plan_ell)
         request = self._client(now_s, v)
         goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
-        urgent = self._hard_brake(remaining, v, grade, limits, out)
+        # the normal path can brake with the whole longitudinal axis once it slows out of a curve
+        normal_decel = max(limits.decel_mps2, lon_axis + g_along)
+        urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
         if self.hard_brake:
             goal = 0.0
         self.goal_mps = goal
@@ -621,15 +650,18 @@ class DrivingModule:
         if (now_s + TIME_EPS_S >= self.next_spss_s or urgent) and not waiting:
             overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
             spss_limits = limits
-            if (self.limits.lapsed(now_s) and min(v_auth, v_lat) >= v - cfg.accel_band_mps
-                    and not self.hard_brake):
+            if (self.limits.lapsed(now_s) and not self.hard_brake
+                    and min(v_auth, v_lat, gear_cap, self.limits.lowest_live_mps(now_s))
+                    >= v - cfg.accel_band_mps):
                 # only a lapsed source asks for the stop: a controlled one, not the ellipse's
                 spss_limits = Longitudinal(accel_mps2=limits.accel_mps2,
                                            decel_mps2=min(limits.decel_mps2, cfg.lapse_decel_mps2))
             speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, spss_limits,
                                                                        overload_rate, cfg)
             if self.hard_brake:
-                rate = self.params.max_brake_decel_mps2   # the speed server's full-brake request
+                # the speed server's full-brake request; in an overloaded curve what the
+                # ellipse leaves (full brake would take the grip the curve needs)
+                rate = limits.decel_mps2 if overload else self.params.max_brake_decel_mps2
             if not request.drive:
                 speed_cmd = 0.0
             out.append((Topic.SET_SPEED, SetSpeed(
@@ -658,20 +690,23 @@ class DrivingModule:
 
     # ------------------------------------------------------------------ helpers
 
-    def _hard_brake(self, remaining_m: float, v: float, grade_rad: float, limits: Longitudinal,
-                    out: list) -> bool:
+    def _hard_brake(self, remaining_m: float, v: float, v_auth: float, grade_rad: float,
+                    normal_decel_mps2: float, out: list) -> bool:
         """Issue 17: when what is left of the authorization is shorter than a stop on the normal
-        path (``normal_stop_reaction_s`` at speed, then the ellipse's deceleration, or the
+        path (``normal_stop_reaction_s`` at speed, then the ellipse's longitudinal axis, or the
         terminal tail), brake with everything at once, without waiting for the SPSS period,
-        until the vehicle stands. True on the period it starts (send the SPSS now)."""
+        until the vehicle stands. Only when the authorization asks to slow at all (``v_auth``
+        below the speed): a curve or a shrunk ellipse alone never starts it. True on the
+        period it starts (send the SPSS now)."""
         cfg = self.config
         if self.hard_brake:
             if v < cfg.stopped_mps:
                 self.hard_brake = False
             return False
-        if not math.isfinite(remaining_m) or v < cfg.hard_brake_min_mps:
+        if (not math.isfinite(remaining_m) or v < cfg.hard_brake_min_mps
+                or v_auth >= v - cfg.accel_band_mps):
             return False
-        decel = max(limits.decel_mps2, cfg.min_rate_mps2)
+        decel = max(normal_decel_mps2, cfg.min_rate_mps2)
         normal_m = max(v * cfg.normal_stop_reaction_s + v * v / (2.0 * decel),
                        stop_tail_m(v, grade_rad, cfg.stop_tail_s))
         if remaining_m >= normal_m:
