@@ -20,7 +20,7 @@ import pytest
 from overdrive.launch import Launch, free_port
 from overdrive.scenario import parse_scenario
 from overdrive.sim import run_scenario
-from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
+from tests.bus.conftest import HostStalled, as_stranger, check_undisturbed, retry_when_stalled
 from tests.bus.test_launch import FINAL_TOLERANCE_M, ROOT, _distance_m
 from tests.bus.waits import LOADED_TIMEOUT_S
 
@@ -103,20 +103,13 @@ def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path
                 for name, p in tools.items()}
     assert outcomes["raw"][2] == 0 and outcomes["raw"][0].strip() == "2", outcomes["raw"][1]
     summary = result.summary
-    check_undisturbed(summary)
+    # first what a stalled host cannot excuse: no intruder reached a node, every attempt counted
     assert outcomes["no_credentials"][2] == 1 and "--run" in outcomes["no_credentials"][1]
     for name in ("stolen_name", "stolen_spss", "note"):   # the gate took them: pub cannot tell
         assert outcomes[name][2] == 0, outcomes[name][1]
-    # nothing reached a node: no node saw a foreign sender, and the run is the clean run
-    assert result.exit_code == 0, summary["violations"]
     for name, report in result.reports.items():
         assert report["bus"]["rejected"] == {} and report["bus"]["decode_errors"] == {}, name
-    assert _distance_m(summary, embedded) < FINAL_TOLERANCE_M, (summary["final"], embedded["final"])
-    assert summary["odometer_m"] == pytest.approx(embedded["odometer_m"], abs=FINAL_TOLERANCE_M)
-    assert summary["peaks"]["max_speed_mps"] <= 5.0 + 0.3
-    assert math.isclose(summary["peaks"]["max_speed_mps"], embedded["peaks"]["max_speed_mps"],
-                        abs_tol=0.3)
-    # and every attempt is counted in the summary
+    assert summary["peaks"]["max_speed_mps"] <= 5.0 + 0.3, "the 100 % throttle never arrived"
     access = summary["launch"]["access"]
     assert access["mode"].startswith("locked-down")
     denied = access["tool_denied"]
@@ -126,3 +119,15 @@ def test_locked_down_launch_refuses_every_intruder_and_counts_them(run_dir: Path
     assert access["refused_links"].get("vehicle-sim", 0) >= 1, "a raw peer at the node's port"
     assert access["tool_admitted"] == 1
     assert any(e["kind"] == "note" and e.get("reason") == "allowed" for e in summary["events"])
+    # then the run is the clean run, unless the host stalled a process (retried, then skipped,
+    # saying that the part above held)
+    try:
+        check_undisturbed(summary)
+    except HostStalled as exc:
+        raise HostStalled(f"intruders refused and counted (asserted); the comparison with the "
+                          f"clean run not made: {exc}") from None
+    assert result.exit_code == 0, summary["violations"]
+    assert _distance_m(summary, embedded) < FINAL_TOLERANCE_M, (summary["final"], embedded["final"])
+    assert summary["odometer_m"] == pytest.approx(embedded["odometer_m"], abs=FINAL_TOLERANCE_M)
+    assert math.isclose(summary["peaks"]["max_speed_mps"], embedded["peaks"]["max_speed_mps"],
+                        abs_tol=0.3)
