@@ -42,6 +42,15 @@ class OdometerHistory:
             times.popleft()
             odos.popleft()
 
+    def dated(self, issued_s: float, now_s: float) -> str:
+        """Why ``issued_s`` is future-dated or stale at ``now_s``, or ""."""
+        if issued_s > now_s + self.skew_s:
+            return f"issued at t={issued_s:.3f} s, in the future (now t={now_s:.3f} s)"
+        if now_s - issued_s > self.max_age_s:
+            return (f"issued {now_s - issued_s:.3f} s ago, older than "
+                    f"{self.max_age_s:.1f} s: stale")
+        return ""
+
     def anchor(self, issued_s: float, now_s: float) -> tuple[float | None, str]:
         """The odometer when ``issued_s`` was, or (None, why) for a stale or future-dated time.
 
@@ -49,11 +58,9 @@ class OdometerHistory:
         future within ``skew_s`` counts as now. A time before this server's first reading is
         refused: the travel since then is unknown, and guessing could hide some.
         """
-        if issued_s > now_s + self.skew_s:
-            return None, f"issued at t={issued_s:.3f} s, in the future (now t={now_s:.3f} s)"
-        if now_s - issued_s > self.max_age_s:
-            return None, (f"issued {now_s - issued_s:.3f} s ago, older than "
-                          f"{self.max_age_s:.1f} s: stale")
+        why = self.dated(issued_s, now_s)
+        if why:
+            return None, why
         times = self._times
         if not times or issued_s < times[0] - 1e-9:
             return None, f"issued at t={issued_s:.3f} s, before this server's first reading"

@@ -489,22 +489,12 @@ class DrivingModule:
         if reason:
             self._reject("max_speed", reason, out)
         elif self._in_order(("max_speed", msg.source), msg.issued_s, out):
-            why = self._dated(msg.issued_s, now_s)
+            why = "" if msg.issued_s is None else self.history.dated(msg.issued_s, now_s)
             if why:
                 self._reject("max_speed", f"max_speed from {msg.source!r}: {why}", out)
                 return
             self._taken(("max_speed", msg.source), msg.issued_s)
             self.limits.update(msg.source, float(msg.speed_mps), now_s)
-
-    def _dated(self, issued_s: float | None, now_s: float) -> str:
-        """Why a stamp is stale or future-dated (the anchoring bounds), or ""."""
-        if issued_s is None:
-            return ""
-        if issued_s > now_s + self.history.skew_s:
-            return f"issued at t={issued_s:.3f} s, in the future (now t={now_s:.3f} s)"
-        if now_s - issued_s > self.history.max_age_s:
-            return f"issued {now_s - issued_s:.3f} s ago: stale"
-        return ""
 
     def _advance(self, now_s: float, msg: Any, out: list) -> None:
         reason = validate_advance(msg)
