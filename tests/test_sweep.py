@@ -117,5 +117,27 @@ def test_fault_sweep_draws_faults_and_reports_per_fault_and_rule(fault_sweep) ->
 @pytest.mark.xfail(strict=True, reason="issue 16: a frozen sensor or a stuck throttle still "
                                        "breaks the judge's speed rule in this sample")
 def test_fault_sweep_has_no_avoidable_violation(fault_sweep) -> None:
+    """Only a run whose fault left no way to meet a rule may violate it, and only after the
+    stack reacted (issue 16: brakes stuck released -> emergency stop, engine cut, fault)."""
     report, _ = fault_sweep
-    assert report["violations"] == 0, report["runs_by_fault"]
+    assert report["avoidable_violating_runs"] == [], report["runs_by_fault"]
+    assert len(report["unavoidable"]) == len(report["violating_runs"])
+
+
+@pytest.mark.parametrize(("fault", "rules", "kinds", "engine", "unavoidable"), [
+    ("brake_stuck", ["authorization"], {"estop", "fault"}, "off", True),
+    ("brake_stuck", ["authorization", "contact"], {"estop", "fault"}, "off", True),
+    ("brake_stuck", ["authorization"], {"estop"}, "off", False),          # no fault reported
+    ("brake_stuck", ["authorization"], {"estop", "fault"}, "running", False),   # engine not cut
+    ("brake_stuck", ["authorization"], {"fault"}, "off", False),          # no emergency stop
+    ("brake_stuck", ["speed"], {"estop", "fault"}, "off", False),         # a rule it could meet
+    ("throttle_stuck", ["authorization"], {"estop", "fault"}, "off", False),
+    (None, ["authorization"], {"estop", "fault"}, "off", False),
+    ("brake_stuck", [], {"estop", "fault"}, "off", False),                # nothing to excuse
+])
+def test_a_violation_is_unavoidable_only_after_the_required_reaction(fault, rules, kinds, engine,
+                                                                    unavoidable) -> None:
+    from overdrive.sweep import unavoidable_cause
+
+    summary = {"events": [{"kind": k} for k in sorted(kinds)], "final": {"engine": engine}}
+    assert (unavoidable_cause(fault, rules, summary) is not None) is unavoidable

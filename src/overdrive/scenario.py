@@ -247,8 +247,9 @@ GradeRange = tuple[Grade, Grade]
 
 
 SweptFault = Literal[
-    "sensor_freeze", "sensor_dropout", "throttle_stuck", "throttle_weak", "brake_weak",
-    "brake_slow", "steering_stuck", "steering_slow", "delay_move", "delay_advance", "reorder_move",
+    "sensor_freeze", "sensor_dropout", "sensor_noise", "throttle_stuck", "throttle_weak",
+    "brake_weak", "brake_slow", "brake_stuck", "steering_stuck", "steering_slow", "delay_move",
+    "delay_advance", "reorder_move",
 ]
 SWEPT_FAULTS: tuple[str, ...] = SweptFault.__args__   # type: ignore[attr-defined]
 

@@ -217,6 +217,7 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
             "heading_rad": round(truth.heading_rad, 5) if truth else 0.0,
             "speed_mps": round(truth.speed_mps, 4) if truth else 0.0,
             "gear": status.gear if status else None,
+            "engine": status.engine if status else None,
             "speed_state": speed_state.state if speed_state else None,
             "safety_mode": status.safety_mode if status else None,
         },

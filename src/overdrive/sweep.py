@@ -34,17 +34,30 @@ JITTERED_KINDS = frozenset({
 """Event kinds whose times are sampled: faults and safety devices, never the commands."""
 
 
+NOISE_SIGMA: dict[str, tuple[float, float]] = {
+    "gps": (0.1, 3.0),           # m: RTK fix changes to a multipath-hit standalone fix
+    "wheel_speed": (0.05, 1.0),  # m/s: a loose or dirty tone-wheel pickup
+    "imu": (0.1, 2.0),           # m/s^2: vibration on a badly mounted unit
+    "radar": (0.5, 5.0),         # m: clutter, a second target
+}
+"""Noise a swept ``sensor_noise`` fault adds, per sensor, in the sensor's units (uniform)."""
+
+
 def fault_event(kind: str, at_s: float, rng: random.Random) -> dict[str, Any]:
     """The scenario event of one swept fault kind, its parameters drawn from ``rng``."""
     for_s = round(rng.uniform(0.5, 5.0), 3)
     if kind in ("sensor_freeze", "sensor_dropout"):
         body: dict[str, Any] = {"sensor": {"name": rng.choice(("gps", "wheel_speed", "imu", "radar")),
                                            "fault": kind.removeprefix("sensor_"), "for_s": for_s}}
-    elif kind == "throttle_stuck":
-        body = {"actuator": {"throttle": {"stuck": True}}}
+    elif kind == "sensor_noise":
+        name = rng.choice(tuple(NOISE_SIGMA))
+        body = {"sensor": {"name": name, "fault": "noise", "for_s": for_s,
+                           "sigma": round(rng.uniform(*NOISE_SIGMA[name]), 3)}}
+    elif kind in ("throttle_stuck", "brake_stuck"):
+        body = {"actuator": {kind.removesuffix("_stuck"): {"stuck": True}}}
     elif kind in ("throttle_weak", "brake_weak"):
         pedal = kind.removesuffix("_weak")
-        body = {"actuator": {pedal: {"effectiveness": round(rng.uniform(0.3, 0.8), 3)}}}
+        body = {"actuator": {pedal: {"effectiveness": round(rng.uniform(0.2, 0.8), 3)}}}
     elif kind == "brake_slow":
         body = {"actuator": {"brake": {"lag_scale": round(rng.uniform(2.0, 5.0), 3)}}}
     elif kind == "steering_stuck":
@@ -103,6 +116,24 @@ def sample_scenario(data: dict[str, Any], run: int, base_seed: int, sweep: Sweep
     return out
 
 
+UNAVOIDABLE: dict[str, frozenset[str]] = {"brake_stuck": frozenset({"authorization", "contact"})}
+"""Drawn faults after which these rules may be broken whatever the stack does (issue 16): with
+the brakes stuck released only the engine cut and coasting remain. Such a run counts as
+unavoidable only if the stack reacted as it must (an emergency stop, the engine cut, a fault
+notice); otherwise, and for any other rule, it is an avoidable violation."""
+
+
+def unavoidable_cause(fault: str | None, rules: list[str], summary: dict[str, Any]) -> str | None:
+    """Why a violating run's violations were physically unavoidable, or None when they were not."""
+    allowed = UNAVOIDABLE.get(fault or "")
+    if not rules or allowed is None or not set(rules) <= allowed:
+        return None
+    kinds = {e["kind"] for e in summary["events"]}
+    if not {"estop", "fault"} <= kinds or summary["final"].get("engine") != "off":
+        return None
+    return f"{fault}: no brakes; emergency stop raised and engine cut, the vehicle coasted"
+
+
 def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
     """Run one sampled scenario (in a worker process); return its figures."""
     from overdrive.sim import run_scenario
@@ -111,11 +142,13 @@ def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
     scenario = parse_scenario(data, f"{source} (run {run})")
     summary = run_scenario(scenario, None, keep_trace=False, plot=False).summary
     invariants = [v for v in summary["violations"] if v.startswith("invariant ")]
+    rules = sorted({d["rule"] for d in summary["violation_details"]})
     return {
         "run": run,
         "seed": data["seed"],
         "fault": fault,
-        "rules": sorted({d["rule"] for d in summary["violation_details"]}),
+        "rules": rules,
+        "unavoidable": unavoidable_cause(fault, rules, summary),
         "friction": data["world"].get("friction"),
         "grade_percent": data["world"].get("grade_percent"),
         "invariant_violations": invariants,
@@ -175,6 +208,9 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
         "runs": runs,
         "violations": sum(len(r["invariant_violations"]) for r in results),
         "violating_runs": [r["run"] for r in violating],
+        "avoidable_violating_runs": [r["run"] for r in violating if not r["unavoidable"]],
+        "unavoidable": [{"run": r["run"], "rules": r["rules"], "cause": r["unavoidable"]}
+                        for r in violating if r["unavoidable"]],
         "violations_by_rule": _by_rule(results),
         "runs_by_fault": _by_fault(results),
         "expectation_failures": sum(len(r["expectation_failures"]) for r in results),
