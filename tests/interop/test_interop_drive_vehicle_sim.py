@@ -100,7 +100,7 @@ def test_overdrive_drive_moves_openjaus_vehicle_sim(openjaus_vsim: Path, kit: Pa
     finally:
         os.close(nm_in)
         os.close(vsim_in)
-    assert drive.returncode == 0, drive.stdout + drive.stderr
+    assert (run / "summary.json").exists(), drive.stdout + drive.stderr
     summary = json.loads((run / "summary.json").read_text())
     with open(run / "trace.csv") as f:
         trace = list(csv.DictReader(f))
@@ -119,6 +119,8 @@ def test_overdrive_drive_moves_openjaus_vehicle_sim(openjaus_vsim: Path, kit: Pa
           f"ahead, {final['y_m']:.2f} m left (reports); ojVehicleSim {along_m:.2f} m ahead, "
           f"{across_m:.2f} m aside (its UTM); peak {summary['peaks']['max_speed_mps']:.2f} m/s; "
           f"heartbeat faults {len(heartbeat_faults)}; events {events}")
+    # every expectation of the scenario held (no fault event, drive-by-wire at the end, ...)
+    assert drive.returncode == 0, (drive.stdout + drive.stderr, summary["violations"])
     # control held for the whole drive: drive-by-wire (control of a ready PD) on every row
     assert modes == {"drive-by-wire"}, modes
     assert float(trace[0]["t_s"]) < 0.5 and float(trace[-1]["t_s"]) > summary["sim_time_s"] - 0.1

@@ -19,10 +19,14 @@ from overdrive.jaus import (
     ConfirmServiceConnection,
     CreateServiceConnection,
     JausId,
+    QueryConfiguration,
+    QueryField,
+    RejectComponentControl,
     ReportComponentStatus,
     ReportGlobalPose,
     ReportHeartbeatPulse,
     ReportVelocityState,
+    RequestComponentControl,
     SetDiscreteDevices,
     SetWrenchEffort,
     decode_datagram,
@@ -43,7 +47,7 @@ from overdrive.vehicle.plain_jaus import (
     safety_mode_from_status,
 )
 from overdrive.vehicle.presets import PRESETS
-from overdrive.vehicle.xgv_client import XgvClient, XgvClientConfig
+from overdrive.vehicle.xgv_client import REGISTRATION_SETTLE_S, XgvClient, XgvClientConfig
 from overdrive.xgv_link import lockstep_nodes, plain_profile_problem
 from tests.conftest import PRESET_NAMES
 
@@ -362,3 +366,28 @@ def test_drive_rejects_an_unknown_profile(tmp_path: Path) -> None:
 
 def test_the_shipped_openjaus_scenario_suits_the_plain_profile() -> None:
     assert plain_profile_problem(load_scenario(SCENARIOS / "openjaus-wrench-drive.yaml")) is None
+
+
+# ---------------------------------------------------------------- registration race (OpenJAUS)
+
+@pytest.mark.parametrize(("after_s", "quiet"), [(REGISTRATION_SETTLE_S - 0.01, True),
+                                                (REGISTRATION_SETTLE_S + 0.01, False)])
+@pytest.mark.parametrize("profile", ["xgv", "plain"])
+def test_a_reject_just_after_openjaus_asked_our_configuration_is_retried(
+        after_s: float, quiet: bool, profile: str) -> None:
+    """OpenJAUS's node manager asks our configuration, then our answer has to reach its
+    system tree before the PD's next check; a Reject in between (seen 30 ms in, interop run)
+    is not a loss of control. Later, it is."""
+    client = XgvClient(PRESETS["escape-hybrid"], XgvClientConfig(profile=profile))
+    deliver(client, ReportHeartbeatPulse(), XGV_NM, 0.0)
+    framed = QueryConfiguration(query_field=QueryField.NODE).with_header(
+        source=XGV_NM, destination=JausId(1, 2, 1, 1))
+    client.receive(encode_datagram(framed), 0.01)
+    assert client.registered
+    deliver(client, ConfirmComponentControl(response=0), PD, 0.01)
+    deliver(client, RejectComponentControl(), PD, 0.01 + after_s)
+    assert not client.control
+    faults = [n.code for n in client.notices]
+    assert faults == ([] if quiet else ["xgv_control"])
+    if quiet:   # asked again at once (a real loss waits for the retry period, as before)
+        assert any(isinstance(m, RequestComponentControl) for m in sent(client, 0.01 + after_s))

@@ -128,6 +128,9 @@ NM_HEARTBEAT_PERIOD_S: Final = 0.5   # OpenJAUS's node manager takes one discove
 REGISTRATION_GRACE_S: Final = 3.0    # a Reject this soon after the link came up, before the
                                      # XGV asked our configuration, is OpenJAUS not knowing us
                                      # yet: retried quietly (seen: confirm, reject ~10 ms later)
+REGISTRATION_SETTLE_S: Final = NM_HEARTBEAT_PERIOD_S   # and just after it asked, before
+                                     # our answer reached its system tree (seen: a Reject
+                                     # 30 ms in, after the query): one of our heartbeat periods
 MAX_WATCHERS: Final = 4              # components watching our status (the PD, the MPD)
 CLIENT_NAME: Final = "overdrive XGV client"   # Report Identification texts (ours)
 NODE_NAME: Final = "overdrive"
@@ -237,6 +240,7 @@ class XgvClient:
         self.replies: list[Message] = []
         self.next_nm_heartbeat_s = -math.inf
         self.registered = False        # the XGV asked our node's configuration
+        self.registered_s = -math.inf  # when it first asked
         self.status_watchers: dict[JausId, list[float]] = {}   # id -> [period, next due]
         self.link_up_s: float | None = None
         # link and control
@@ -302,14 +306,14 @@ class XgvClient:
                 continue
             if isinstance(m, QueryIdentification | QueryConfiguration | QueryServices
                           | QueryHeartbeatPulse):
-                self._answer(m)
+                self._answer(m, now_s)
                 continue
             if isinstance(m, CreateServiceConnection | TerminateServiceConnection):
                 self._status_connection(m, now_s)
                 continue
             self._take(m, h.source, now_s)
 
-    def _answer(self, m: Message) -> None:
+    def _answer(self, m: Message, now_s: float) -> None:
         """Discovery, as OpenJAUS's node manager asks it of a node (docs/xgv.md)."""
         h = m.header
         me = self.config.client_id
@@ -323,7 +327,8 @@ class XgvClient:
                 else NODE_NAME
             answer = ReportIdentification(query_type=m.query_field, identification=text)
         elif isinstance(m, QueryConfiguration):
-            self.registered = True
+            if not self.registered:
+                self.registered, self.registered_s = True, now_s
             answer = ReportConfiguration(nodes=(ConfigurationNode(me.node, (
                 (1, 1), (me.component, me.instance))),))
             asked = self.own_node_manager
@@ -404,8 +409,9 @@ class XgvClient:
             self.wheels = m
 
     def _not_known_yet(self, now_s: float) -> bool:
-        return (self.config.node_manager and not self.registered and self.link_up_s is not None
-                and now_s - self.link_up_s < REGISTRATION_GRACE_S)
+        settling = self.registered and now_s - self.registered_s < REGISTRATION_SETTLE_S
+        return (self.config.node_manager and (not self.registered or settling)
+                and self.link_up_s is not None and now_s - self.link_up_s < REGISTRATION_GRACE_S)
 
     def _discrete_report(self, m: ReportDiscreteDevices) -> None:
         self.discrete = m
