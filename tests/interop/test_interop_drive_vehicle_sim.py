@@ -37,7 +37,8 @@ NODE_JUDP = ("127.0.0.2", 3794)
 CLIENT_BIND = ("127.0.0.3", 3794)
 START_S = 4.0              # node manager and vehicle up (kit example script: 2 s + 4 s)
 DRIVE_TIMEOUT_S = 30.0     # the scenario's 12 s in wall-clock time, plus start and exit
-COMMANDED_M = 12.0         # the scenario's move: 12 m straight ahead
+COMMANDED_M = 12.0         # the scenario's move: 12 m straight ahead, sent at 1 s
+MOVE_AT_S = 1.0
 STOP_TOLERANCE_M = 1.0     # where it stops: ojVehicleSim is not the preset the stack expects
                            # (seen: 11.84 m); the judge checks the authorization itself
 LATERAL_M = 0.3            # off the straight line: 0.07 m seen, all of it UTM grid convergence
@@ -115,16 +116,22 @@ def test_overdrive_drive_moves_openjaus_vehicle_sim(openjaus_vsim: Path, kit: Pa
     across_m = -(x1 - x0) * math.sin(HEADING_RAD) + (y1 - y0) * math.cos(HEADING_RAD)
     final = summary["final"]
     print(f"drive {drive_s:.1f} s (scenario {summary['sim_time_s']} s); trace "
-          f"{trace[0]['t_s']}..{trace[-1]['t_s']} s, modes {modes}; moved {final['x_m']:.2f} m "
+          f"{trace[0]['t_s']}..{trace[-1]['t_s']} s, modes {modes}, first drive-by-wire "
+          f"{next((r['t_s'] for r in trace if r['safety_mode'] == 'drive-by-wire'), None)} s; moved {final['x_m']:.2f} m "
           f"ahead, {final['y_m']:.2f} m left (reports); ojVehicleSim {along_m:.2f} m ahead, "
           f"{across_m:.2f} m aside (its UTM); peak {summary['peaks']['max_speed_mps']:.2f} m/s; "
           f"heartbeat faults {len(heartbeat_faults)}; events {events}")
     # every expectation of the scenario held (no fault event, drive-by-wire at the end, ...)
     assert drive.returncode == 0, (drive.stdout + drive.stderr, summary["violations"])
-    # control held for the whole drive: drive-by-wire (control of a ready PD) on every row
-    assert modes == {"drive-by-wire"}, modes
-    assert float(trace[0]["t_s"]) < 0.5 and float(trace[-1]["t_s"]) > summary["sim_time_s"] - 0.1
-    assert not [e for e in events if e["kind"] == "safety_mode"], events
+    # control held for the whole drive: taken before the move is sent (OpenJAUS may reject
+    # once while it registers us: retried quietly, software-pause meanwhile), then
+    # drive-by-wire (control of a ready PD) on every row to the end, never lost
+    held = [i for i, row in enumerate(trace) if row["safety_mode"] == "drive-by-wire"]
+    assert held and float(trace[held[0]]["t_s"]) < MOVE_AT_S, modes
+    assert {row["safety_mode"] for row in trace[held[0]:]} == {"drive-by-wire"}, modes
+    assert float(trace[-1]["t_s"]) > summary["sim_time_s"] - 0.1
+    changes = [e for e in events if e["kind"] == "safety_mode"]
+    assert all(e["t_s"] < MOVE_AT_S and e["to"] == "drive-by-wire" for e in changes), changes
     # no heartbeat (or control, pose, link) fault, no e-stop, nothing rejected; judge satisfied
     assert faults == [] and heartbeat_faults == [], faults
     assert summary["violations"] == [], summary["violations"]
