@@ -58,10 +58,12 @@ def _port_free(address: tuple[str, int]) -> bool:
 
 
 def _screen_positions(log: str) -> list[tuple[float, float]]:
-    """ojVehicleSim's UTM (x east, y north) on every screen it drew, in order."""
+    """ojVehicleSim's UTM (x east, y north) on every screen it drew, in order; screens drawn
+    before its vehicle thread set the position print 0, 0 and are left out."""
     xs = re.findall(r"VS Vehicle X:" + ANSI + r"([+-]?\d+\.\d+)", log)
     ys = re.findall(r"VS Vehicle Y:" + ANSI + r"([+-]?\d+\.\d+)", log)
-    return [(float(x), float(y)) for x, y in zip(xs, ys, strict=False)]
+    return [(float(x), float(y)) for x, y in zip(xs, ys, strict=False)
+            if (float(x), float(y)) != (0.0, 0.0)]
 
 
 def test_overdrive_drive_moves_openjaus_vehicle_sim(openjaus_vsim: Path, kit: Path,
