@@ -47,7 +47,12 @@ from overdrive.vehicle.plain_jaus import (
     safety_mode_from_status,
 )
 from overdrive.vehicle.presets import PRESETS
-from overdrive.vehicle.xgv_client import REGISTRATION_SETTLE_S, XgvClient, XgvClientConfig
+from overdrive.vehicle.xgv_client import (
+    ODOMETER_GAP_S,
+    REGISTRATION_SETTLE_S,
+    XgvClient,
+    XgvClientConfig,
+)
 from overdrive.xgv_link import lockstep_nodes, plain_profile_problem
 from tests.conftest import PRESET_NAMES
 
@@ -58,6 +63,10 @@ PD = JausId(1, 1, 33, 1)
 GPOS = JausId(1, 1, 38, 1)
 VSS = JausId(1, 1, 42, 1)
 LAT0, LON0 = 37.2136, -80.4376     # ojVehicleSim's start (its config/vehicleSim.conf)
+STOPPED_WITHIN_S = 4.0     # refused fixes -> no position after 0.25 s, move server's GPS timeout
+                           # 0.2 s, then a stop from <= 2.5 m/s at the pause deceleration (~2 s)
+BLIND_STOP_M = 3.5         # from the first refused fix to standstill: measured 2.3-3.3 m on
+                           # both presets from 1.2-2.4 m/s (0.45 s blind, then the stop)
 JUMP_ALLOWED_M = JUMP_NOISE_SIGMAS * math.sqrt(2.0) * DEFAULT_POSITION_RMS_M   # at dt 0
 
 
@@ -265,6 +274,19 @@ def test_a_refused_fix_over_the_wire_never_moves_the_stacks_pose(bad: dict) -> N
     assert [n.code for t, n in again.items() if t == Topic.NOTICE] == ["xgv_pose"]
 
 
+@pytest.mark.parametrize(("age_s", "published"), [(ODOMETER_GAP_S - 0.01, True),
+                                                  (ODOMETER_GAP_S + 0.01, False)])
+def test_no_stale_position_once_fixes_are_refused_for_long(age_s: float, published: bool) -> None:
+    """The stack gets no position rather than an old one (its move server then stops)."""
+    client = controlling()
+    report(client, 0.1, pose=fix())
+    bad = fix(latitude_deg=89.0)
+    out = report(client, 0.1 + age_s, pose=bad)
+    assert (Topic.GPS_INS in out) is published
+    assert Topic.VEHICLE_STATUS in out and Topic.WHEEL_SPEED in out
+    assert Topic.GPS_INS in report(client, 0.2 + age_s, pose=fix(0.5))   # a good fix again
+
+
 def test_a_jump_over_the_wire_is_refused() -> None:
     client = controlling()
     report(client, 0.1, pose=fix())
@@ -337,6 +359,38 @@ def test_no_actuator_command_from_refused_poses(origin_deg: tuple[float, float])
     assert [e["code"] for e in summary["events"] if e["kind"] == "fault"] == ["xgv_pose"]
     rejected = [e for e in summary["events"] if e["kind"] == "rejected"]
     assert [(e["command"], e["reason"]) for e in rejected] == [("move", "not_ready")]
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("at_s", [2.0, 3.5, 5.0])
+def test_fixes_refused_while_driving_stop_the_vehicle(preset: str, at_s: float) -> None:
+    """From ``at_s`` every fix is beyond the projection's latitudes (the vehicle's GPS goes
+    wrong mid-move): the stack stops within the move server's GPS timeout instead of driving
+    on a frozen position; the fault is said once and the judge finds nothing."""
+    scenario = ready("openjaus-wrench-drive.yaml", preset)
+    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
+        scenario.spec, interface="embedded", control="wrench"))
+    nodes = lockstep_nodes(scenario, build_nodes(embedded)[1:], profile="plain")
+    xgv = nodes[0]
+    step = xgv.step
+
+    def corrupting(now_s: float, inbox: object) -> object:
+        if now_s >= at_s:
+            xgv.simulator.origin_deg = (86.0, 10.0)
+        return step(now_s, inbox)
+
+    xgv.step = corrupting
+    result = run_scenario(scenario, None, keep_trace=True, nodes=nodes, plot=False)
+    summary, trace = result.summary, result.trace
+    assert [v for v in summary["violations"] if not v.startswith("expect")] == []
+    assert [e["code"] for e in summary["events"] if e["kind"] == "fault"] == ["xgv_pose"]
+    then = next(r for r in trace if float(r["t_s"]) >= at_s)
+    v_mps, odometer_m = float(then["speed_mps"]), float(then["odometer_m"])
+    later = [float(r["speed_mps"]) for r in trace if float(r["t_s"]) >= at_s + STOPPED_WITHIN_S]
+    assert v_mps > 0.5, v_mps                              # it was driving when it happened
+    assert max(later) < 0.05, max(later)                   # and then it stood still
+    assert summary["odometer_m"] - odometer_m <= BLIND_STOP_M, (summary["odometer_m"], odometer_m)
+    assert summary["odometer_m"] < 11.0                    # short of the move's 11.8 m
 
 
 # ---------------------------------------------------------------- the CLI

@@ -234,6 +234,7 @@ class XgvClient:
         self.frame = LocalFrame()
         self.pd_status: int | None = None      # plain: the PD's primary status, and when
         self.pd_status_s = -math.inf
+        self.pose_s = -math.inf                # plain: when a Global Pose was last accepted
         self.stats = ClientStats()
         # discovery: our node's node manager (component 1, instance 1)
         self.own_node_manager = JausId(cfg.client_id.subsystem, cfg.client_id.node, 1, 1)
@@ -403,6 +404,7 @@ class XgvClient:
                 self._notice("pose", str(exc))
             else:
                 self._told.discard("pose")
+                self.pose_s = now_s
         elif isinstance(m, ReportComponentStatus) and source == self.pd:
             self.pd_status, self.pd_status_s = m.primary_status, now_s
         elif isinstance(m, ReportWheelsSpeed):
@@ -499,6 +501,8 @@ class XgvClient:
                     else self.vehicle_status(now_s)))
         v = self.speed_mps
         pose = self.pose
+        if self.plain and now_s - self.pose_s > ODOMETER_GAP_S:
+            pose = None   # refused or missing fixes: no stale position (the move server stops)
         self._odometer(pose)
         pitch = (pose.pitch_rad or 0.0) if pose is not None else 0.0
         roll = (pose.roll_rad or 0.0) if pose is not None else 0.0
