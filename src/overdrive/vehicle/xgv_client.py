@@ -28,6 +28,11 @@ speed at 0, the speed server holds the brakes as ``computer_speed`` is false); i
 disable the XGV stops the engine, which the speed server takes as a stall (a fault). When the
 XGV's heartbeat is missing for ``heartbeat_timeout_s`` the client reports a fault and stops
 publishing sensors, so the speed server's sensor watchdog latches an emergency stop.
+
+``profile="plain"`` reads a plain JAUS 3.3 vehicle (OpenJAUS's ojVehicleSim) instead:
+safety mode from the PD's Report Component Status, pose from Report Global Pose on a local
+tangent plane (refused fixes never move the pose; none for 0.25 s: no ``GpsIns``), speed from
+Velocity State, no Set Discrete Devices; see ``vehicle.plain_jaus`` and docs/xgv.md.
 """
 
 from __future__ import annotations
