@@ -229,19 +229,28 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
               help="Run folder (default runs/NAME-TIMESTAMP/).")
 @click.option("--quiet", is_flag=True, help="No summary table.")
-def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool) -> None:
+@click.option("--profile", type=click.Choice(["xgv", "plain"]), default="xgv", show_default=True,
+              help="The vehicle's JAUS profile: xgv (a ByWire XGV or xgv-sim) or plain (a JAUS "
+                   "3.3 vehicle without the XGV's reports, e.g. OpenJAUS's ojVehicleSim: "
+                   "needs control: wrench and start: ready).")
+def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool,
+          profile: str) -> None:
     """Run the control stack against a real or simulated XGV over JAUS, in wall-clock time."""
     from overdrive.run_files import OutDirError, make_out_dir
     from overdrive.scenario import ScenarioError, load_scenario
     from overdrive.sim import default_out_dir
-    from overdrive.xgv_link import run_drive
+    from overdrive.xgv_link import plain_profile_problem, run_drive
 
     remote = _host_port(xgv, 3794, "--xgv")
     local = _host_port(bind, 0, "--bind")
     try:
         loaded = load_scenario(scenario)
+        problem = plain_profile_problem(loaded) if profile == "plain" else None
+        if problem is not None:
+            fail_usage(f"{scenario}: {problem} (--profile plain)")
         out = make_out_dir(out_dir or default_out_dir(loaded))
-        result = run_drive(loaded, remote, out, bind=local)
+        result = run_drive(loaded, remote, out, bind=local,
+                           profile="plain" if profile == "plain" else "xgv")
     except (ScenarioError, OutDirError) as exc:
         fail_usage(str(exc))
         return

@@ -33,6 +33,7 @@ from overdrive.faults import ChannelFaults, Window
 from overdrive.messages import Topic
 from overdrive.player import world_from_spec
 from overdrive.scenario import Scenario
+from overdrive.vehicle.plain_jaus import JausProfile
 from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
 from overdrive.vehicle.xgv import POSITION_RMS_M, XgvSimulator
 from overdrive.vehicle.xgv_client import XgvClient, XgvClientConfig
@@ -309,15 +310,17 @@ def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
     return found
 
 
-def lockstep_nodes(scenario: Scenario, servers: Sequence[Any]) -> list[Any]:
-    """The XGV, the client and ``servers`` (player first) for a lock-step run of ``scenario``."""
+def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
+                   profile: JausProfile = "xgv") -> list[Any]:
+    """The XGV, the client and ``servers`` (player first) for a lock-step run of ``scenario``
+    (``profile="plain"``: the client reads the simulated XGV as a plain JAUS vehicle)."""
     spec = scenario.spec
     transport: Literal["udp", "memory"] = "udp" if spec.interface == "jaus" else "memory"
     link = LoopbackLink(transport, jaus_faults(scenario))
     simulator = XgvSimulator(scenario.vehicle, world_from_spec(spec.world), spec.seed,
                              ready=spec.start == "ready")
     control = "motion-profile" if spec.control == "motion-profile" else "wrench"
-    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control))
+    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, profile=profile))
     port = _ClientPort(link)
     return [XgvSimNode(simulator, link), XgvSensorNode(client, port), *servers,
             XgvCommandNode(client, port)]
@@ -329,17 +332,30 @@ stays within six standard deviations of its reported accuracy over a run's sampl
 
 
 def drive_nodes(scenario: Scenario, servers: Sequence[Any], remote: Address,
-                bind: Address = ("0.0.0.0", 0)) -> list[Any]:
-    """The client and ``servers`` for a wall-clock run against the XGV at ``remote``."""
+                bind: Address = ("0.0.0.0", 0), profile: JausProfile = "xgv") -> list[Any]:
+    """The client and ``servers`` for a wall-clock run against the vehicle at ``remote``
+    (``profile``: an XGV, or a plain JAUS 3.3 vehicle, ``vehicle.plain_jaus``)."""
     control = "motion-profile" if scenario.spec.control == "motion-profile" else "wrench"
     client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, publish_truth=True,
-                                                         accel_filter_s=0.05))
+                                                         accel_filter_s=0.05, profile=profile))
     port = _ClientPort(UdpPort(remote, bind))
     return [XgvSensorNode(client, port), *servers, XgvCommandNode(client, port)]
 
 
+def plain_profile_problem(scenario: Scenario) -> str | None:
+    """Why ``scenario`` cannot drive a plain JAUS vehicle (None: it can). Such a vehicle has
+    no Motion Profile Driver and reports no engine or gear (``vehicle.plain_jaus``)."""
+    if scenario.spec.control != "wrench":
+        return "control: a plain JAUS vehicle has no Motion Profile Driver; use control: wrench"
+    if scenario.spec.start != "ready":
+        return ("start: a plain JAUS vehicle reports no engine or gear, so the stack cannot "
+                "start or shift it; use start: ready (engine running, in drive)")
+    return None
+
+
 def run_drive(scenario: Scenario, remote: Address, out_dir: Any = None, *,
-              bind: Address = ("0.0.0.0", 0), plot: bool = True, keep_trace: bool = False) -> Any:
+              bind: Address = ("0.0.0.0", 0), plot: bool = True, keep_trace: bool = False,
+              profile: JausProfile = "xgv") -> Any:
     """``overdrive drive``: the stack against the XGV at ``remote``, in wall-clock time.
 
     The servers are those ``overdrive sim`` builds for the scenario; the run folder is the
@@ -354,9 +370,9 @@ def run_drive(scenario: Scenario, remote: Address, out_dir: Any = None, *,
         scenario.spec, interface="embedded", control="wrench"))
     servers = build_nodes(embedded)[1:]
     return run_scenario(scenario, out_dir, realtime=True, plot=plot, keep_trace=keep_trace,
-                        nodes=drive_nodes(scenario, servers, remote, bind),
+                        nodes=drive_nodes(scenario, servers, remote, bind, profile),
                         position_noise_m=REPORTED_POSE_BOUND_M)
 
 
 __all__ = ["LoopbackLink", "UdpPort", "XgvCommandNode", "XgvSensorNode", "XgvSimNode",
-           "drive_nodes", "jaus_faults", "lockstep_nodes", "run_drive"]
+           "drive_nodes", "jaus_faults", "lockstep_nodes", "plain_profile_problem", "run_drive"]

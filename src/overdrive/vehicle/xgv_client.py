@@ -28,6 +28,11 @@ speed at 0, the speed server holds the brakes as ``computer_speed`` is false); i
 disable the XGV stops the engine, which the speed server takes as a stall (a fault). When the
 XGV's heartbeat is missing for ``heartbeat_timeout_s`` the client reports a fault and stops
 publishing sensors, so the speed server's sensor watchdog latches an emergency stop.
+
+``profile="plain"`` reads a plain JAUS 3.3 vehicle (OpenJAUS's ojVehicleSim) instead:
+safety mode from the PD's Report Component Status, pose from Report Global Pose on a local
+tangent plane (refused fixes never move the pose; none for 0.25 s: no ``GpsIns``), speed from
+Velocity State, no Set Discrete Devices; see ``vehicle.plain_jaus`` and docs/xgv.md.
 """
 
 from __future__ import annotations
@@ -63,6 +68,7 @@ from overdrive.jaus import (
     ReportComponentStatus,
     ReportConfiguration,
     ReportDiscreteDevices,
+    ReportGlobalPose,
     ReportHeartbeatPulse,
     ReportIdentification,
     ReportLocalPose,
@@ -100,6 +106,14 @@ from overdrive.messages import (
 )
 from overdrive.safety.gate import GateLimits, gate_pedals
 from overdrive.vehicle.modes import SAFETY_MODES, computer_axes
+from overdrive.vehicle.plain_jaus import (
+    STATUS_TIMEOUT_S,
+    JausProfile,
+    JausSensor,
+    LocalFrame,
+    PoseRefused,
+    safety_mode_from_status,
+)
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
 from overdrive.vehicle.xgv import gear_codes, gear_from_code
 
@@ -119,6 +133,9 @@ NM_HEARTBEAT_PERIOD_S: Final = 0.5   # OpenJAUS's node manager takes one discove
 REGISTRATION_GRACE_S: Final = 3.0    # a Reject this soon after the link came up, before the
                                      # XGV asked our configuration, is OpenJAUS not knowing us
                                      # yet: retried quietly (seen: confirm, reject ~10 ms later)
+REGISTRATION_SETTLE_S: Final = NM_HEARTBEAT_PERIOD_S   # and just after it asked, before
+                                     # our answer reached its system tree (seen: a Reject
+                                     # 30 ms in, after the query): one of our heartbeat periods
 MAX_WATCHERS: Final = 4              # components watching our status (the PD, the MPD)
 CLIENT_NAME: Final = "overdrive XGV client"   # Report Identification texts (ours)
 NODE_NAME: Final = "overdrive"
@@ -156,8 +173,10 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
     discrete_refresh_s: float = 0.5       # Set Discrete Devices repeated (a lost one heals)
     motion_duration_s: float = 0.4        # reference §6: "clients send 400 ms and refresh it"
     accel_filter_s: float = 0.0           # on the differentiated velocity (wall clock: ~0.05)
-    velocity_component: int = XgvComponent.PRIMITIVE_DRIVER
-    pose_component: int = XgvComponent.PRIMITIVE_DRIVER
+    profile: JausProfile = "xgv"         # "plain": a JAUS 3.3 vehicle without the XGV's own
+                                          # reports (vehicle.plain_jaus, docs/xgv.md)
+    velocity_component: int | None = None  # None: the profile's (XGV: the PD; plain: 42)
+    pose_component: int | None = None      # None: the profile's (XGV: the PD; plain: 38)
     publish_truth: bool = False           # overdrive drive: the run's trace from the reports
     limits: GateLimits | None = None      # who may command (default: VehicleSim's sources)
     pack_datagrams: bool = False          # several messages per datagram: only for peers that
@@ -167,7 +186,8 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
 
 
 class ClientStats:
-    __slots__ = ("datagrams", "foreign", "malformed", "messages", "rejected_commands")
+    __slots__ = ("datagrams", "foreign", "malformed", "messages", "rejected_commands",
+                 "rejected_reports")
 
     def __init__(self) -> None:
         for name in self.__slots__:
@@ -196,20 +216,37 @@ class XgvClient:
         self.pd = xgv(XgvComponent.PRIMITIVE_DRIVER)
         self.mpd = xgv(XgvComponent.MOTION_PROFILE_DRIVER)
         self.target = self.pd if cfg.control == "wrench" else self.mpd
-        self.wanted: dict[int, JausId] = {
-            ReportVehicleMode.code: self.node_manager,
-            ReportVelocityState.code: xgv(cfg.velocity_component),
-            ReportLocalPose.code: xgv(cfg.pose_component),
-            ReportWrenchEffort.code: self.pd,
-            ReportDiscreteDevices.code: self.pd,
-            ReportWheelsSpeed.code: self.pd,
-        }
+        self.plain = cfg.profile == "plain"
+        if self.plain and cfg.control != "wrench":
+            raise ValueError("a plain JAUS vehicle has no Motion Profile Driver: control wrench")
+        if self.plain:   # vehicle.plain_jaus: status, Global Pose and Velocity State only
+            self.wanted: dict[int, JausId] = {
+                ReportComponentStatus.code: self.pd,
+                ReportVelocityState.code: xgv(cfg.velocity_component
+                                              or JausSensor.VELOCITY_STATE),
+                ReportGlobalPose.code: xgv(cfg.pose_component or JausSensor.GLOBAL_POSE),
+            }
+        else:
+            self.wanted = {
+                ReportVehicleMode.code: self.node_manager,
+                ReportVelocityState.code: xgv(cfg.velocity_component
+                                              or XgvComponent.PRIMITIVE_DRIVER),
+                ReportLocalPose.code: xgv(cfg.pose_component or XgvComponent.PRIMITIVE_DRIVER),
+                ReportWrenchEffort.code: self.pd,
+                ReportDiscreteDevices.code: self.pd,
+                ReportWheelsSpeed.code: self.pd,
+            }
+        self.frame = LocalFrame()
+        self.pd_status: int | None = None      # plain: the PD's primary status, and when
+        self.pd_status_s = -math.inf
+        self.pose_s = -math.inf                # plain: when a Global Pose was last accepted
         self.stats = ClientStats()
         # discovery: our node's node manager (component 1, instance 1)
         self.own_node_manager = JausId(cfg.client_id.subsystem, cfg.client_id.node, 1, 1)
         self.replies: list[Message] = []
         self.next_nm_heartbeat_s = -math.inf
         self.registered = False        # the XGV asked our node's configuration
+        self.registered_s = -math.inf  # when it first asked
         self.status_watchers: dict[JausId, list[float]] = {}   # id -> [period, next due]
         self.link_up_s: float | None = None
         # link and control
@@ -250,7 +287,7 @@ class XgvClient:
         self.step_m = 0.0          # distance and time since the last published odometer
         self.step_s = 0.0
         self.curvature_1pm = 0.0
-        self.engine = "off"
+        self.engine = "running" if self.plain else "off"   # plain: reports none (start: ready)
         self.start_failed = False
 
     # ------------------------------------------------------------------ wire in
@@ -275,14 +312,14 @@ class XgvClient:
                 continue
             if isinstance(m, QueryIdentification | QueryConfiguration | QueryServices
                           | QueryHeartbeatPulse):
-                self._answer(m)
+                self._answer(m, now_s)
                 continue
             if isinstance(m, CreateServiceConnection | TerminateServiceConnection):
                 self._status_connection(m, now_s)
                 continue
             self._take(m, h.source, now_s)
 
-    def _answer(self, m: Message) -> None:
+    def _answer(self, m: Message, now_s: float) -> None:
         """Discovery, as OpenJAUS's node manager asks it of a node (docs/xgv.md)."""
         h = m.header
         me = self.config.client_id
@@ -296,7 +333,8 @@ class XgvClient:
                 else NODE_NAME
             answer = ReportIdentification(query_type=m.query_field, identification=text)
         elif isinstance(m, QueryConfiguration):
-            self.registered = True
+            if not self.registered:
+                self.registered, self.registered_s = True, now_s
             answer = ReportConfiguration(nodes=(ConfigurationNode(me.node, (
                 (1, 1), (me.component, me.instance))),))
             asked = self.own_node_manager
@@ -361,14 +399,26 @@ class XgvClient:
             self._discrete_report(m)
         elif isinstance(m, ReportVelocityState):
             self._velocity_report(m, now_s)
-        elif isinstance(m, ReportLocalPose):
+        elif isinstance(m, ReportLocalPose) and not self.plain:
             self.pose = m
+        elif isinstance(m, ReportGlobalPose) and self.plain:
+            try:
+                self.pose = self.frame.project(m, now_s)
+            except PoseRefused as exc:   # never used: the stack keeps the last good pose
+                self.stats.rejected_reports += 1
+                self._notice("pose", str(exc))
+            else:
+                self._told.discard("pose")
+                self.pose_s = now_s
+        elif isinstance(m, ReportComponentStatus) and source == self.pd:
+            self.pd_status, self.pd_status_s = m.primary_status, now_s
         elif isinstance(m, ReportWheelsSpeed):
             self.wheels = m
 
     def _not_known_yet(self, now_s: float) -> bool:
-        return (self.config.node_manager and not self.registered and self.link_up_s is not None
-                and now_s - self.link_up_s < REGISTRATION_GRACE_S)
+        settling = self.registered and now_s - self.registered_s < REGISTRATION_SETTLE_S
+        return (self.config.node_manager and (not self.registered or settling)
+                and self.link_up_s is not None and now_s - self.link_up_s < REGISTRATION_GRACE_S)
 
     def _discrete_report(self, m: ReportDiscreteDevices) -> None:
         self.discrete = m
@@ -448,11 +498,16 @@ class XgvClient:
         out.extend((Topic.NOTICE, n) for n in self.notices)
         self.notices.clear()
         fresh, self.fresh = self.fresh, False
-        if not (fresh and self.link_up and self.mode is not None and self.discrete is not None):
+        known = (self.pd_status is not None if self.plain
+                 else self.mode is not None and self.discrete is not None)
+        if not (fresh and self.link_up and known):
             return out
-        out.append((Topic.VEHICLE_STATUS, self.vehicle_status(now_s)))
+        out.append((Topic.VEHICLE_STATUS, self.plain_status(now_s) if self.plain
+                    else self.vehicle_status(now_s)))
         v = self.speed_mps
         pose = self.pose
+        if self.plain and now_s - self.pose_s > ODOMETER_GAP_S:
+            pose = None   # refused or missing fixes: no stale position (the move server stops)
         self._odometer(pose)
         pitch = (pose.pitch_rad or 0.0) if pose is not None else 0.0
         roll = (pose.roll_rad or 0.0) if pose is not None else 0.0
@@ -503,6 +558,23 @@ class XgvClient:
         if self.mode.safety_mode == 0:
             return "inactive"
         return name if name in SAFETY_MODES else "software-pause"
+
+    def plain_status(self, now_s: float) -> VehicleStatus:
+        """A plain JAUS vehicle's status: mode from the PD's component status (stale after
+        ``STATUS_TIMEOUT_S``: unknown); it reports no gear, engine or actuator positions, so
+        it is taken as ready in its drive gear (``overdrive drive --profile plain`` needs
+        ``start: ready``) and its efforts as the ones last commanded."""
+        p = self.params
+        status = self.pd_status if now_s - self.pd_status_s <= STATUS_TIMEOUT_S else None
+        mode = safety_mode_from_status(status, self.control)
+        computer_steering, computer_speed = computer_axes(mode, "full")
+        throttle, brake, _ = gate_pedals(self.pedals.throttle_pct, self.pedals.brake_pct)
+        return VehicleStatus(
+            gear=p.drive_gear, shifting=False, engine="running",
+            engine_rpm=self._rpm(p.drive_gear),
+            start_failed=False, traction_control=False, steer_pct=self.steer_pct,
+            throttle_pct=throttle, brake_pct=brake, safety_mode=mode,
+            computer_speed=computer_speed, computer_steering=computer_steering)
 
     def vehicle_status(self, now_s: float) -> VehicleStatus:
         p = self.params
@@ -568,11 +640,12 @@ class XgvClient:
                                          self.target))
                 self.next_request_s = now_s + cfg.retry_s
         if self.control:
-            if (self.mode is None or self.mode.ready_mode != ReadyMode.READY) \
-                    and now_s >= self.next_resume_s:
+            paused = (self.pd_status == ComponentStatus.STANDBY if self.plain
+                      else self.mode is None or self.mode.ready_mode != ReadyMode.READY)
+            if paused and now_s >= self.next_resume_s:
                 messages.append(self._to(Resume(), self.target))
                 self.next_resume_s = now_s + cfg.retry_s
-            discrete = self._discrete_command(now_s)
+            discrete = None if self.plain else self._discrete_command(now_s)
             if discrete is not None:
                 messages.append(discrete)
             messages.append(self._wrench() if cfg.control == "wrench" else self._motion())
