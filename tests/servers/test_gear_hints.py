@@ -21,6 +21,7 @@ from tests.conftest import PRESET_NAMES
 
 CFG = DrivingConfig()
 ACCEL = CFG.accel_mps2          # comfort acceleration, also the stop's assumed deceleration
+EPS = 1e-3
 
 
 def hints(preset: str) -> GearHints:
@@ -139,6 +140,31 @@ def test_no_stop_while_the_module_itself_slows_the_vehicle(preset):
     h = hints(preset)
     h.update("suggest_downshift", "run", p.drive_gear, 2.0, -0.7, 2.9, 5.0, 0.1, 1.5)
     assert h.prefer_low and h.now_gear is None
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize(("goal_mps", "speed_mps", "now"), [
+    (2.5, 2.0 - EPS, True), (2.5, 2.0 + EPS, False),      # the goal leads by 0.5 m/s ...
+    (0.3, 0.15 - EPS, True), (0.3, 0.15 + EPS, False)])   # ... or half a slower goal
+def test_a_downshift_stops_the_move_only_while_the_goal_still_leads(preset, goal_mps, speed_mps,
+                                                                    now):
+    p = PRESETS[preset]
+    h = hints(preset)
+    h.update("suggest_downshift", "run", p.drive_gear, speed_mps, -1.0, 40.0, 5.0, 0.1, goal_mps)
+    assert h.prefer_low
+    assert (h.now_gear == p.low_gear) is now
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize(("goal_below_mps", "considered"), [(0.3 - EPS, True), (0.3 + EPS, False)])
+def test_an_upshift_stops_the_move_only_while_the_goal_is_near_the_speed(preset, goal_below_mps,
+                                                                         considered):
+    p = PRESETS[preset]
+    h = hints(preset)
+    v = cap(preset, p.low_gear)
+    h.update("suggest_upshift", "run", p.low_gear, v, 0.0, 1e5, LIMIT_MPS[preset], 0.0,
+             v - goal_below_mps)
+    assert (h.now_gear == p.drive_gear) is considered
 
 
 def test_a_slow_climb_that_low_gear_barely_improves_is_finished_in_drive():

@@ -88,6 +88,15 @@ def test_downshift_needs_the_target_ahead_by_half_a_metre_per_second(preset, gap
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize(("speed_mps", "fires"), [
+    (0.0, True), (0.15 - EPS, True), (0.15 + EPS, False), (0.3, False)])
+def test_downshift_when_stalled_short_of_a_slow_target(preset, speed_mps, fires):
+    """Creeping to the end of a move (0.3 m/s): half the target behind is enough."""
+    view = lugging_view(preset, speed_mps=speed_mps, wheel_mps=speed_mps, target_mps=0.3)
+    assert (hint_after(monitor(preset), view, 2.0) == "suggest_downshift") is fires
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize(("accel_mps2", "fires"), [
     (-2.0, True), (0.0, True), (0.3 - EPS, True), (0.3, False), (0.3 + EPS, False),
     (1.0, False)])

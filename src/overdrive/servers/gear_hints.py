@@ -26,7 +26,10 @@ import math
 import msgspec
 
 from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.servers.speed_hints import HintConfig
 from overdrive.vehicle.presets import VehicleParams
+
+_LUG = HintConfig()   # the speed server's lugging thresholds, defaults
 
 
 class GearHintConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -37,6 +40,13 @@ class GearHintConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
                                    # -> shifting -> run (measured 0.3-0.4 s at the 100 ms SPSS rate)
     stopped_mps: float = 0.05      # below this a lugging vehicle has stalled (the driving
                                    # module's standstill)
+    lug_gap_mps: float = _LUG.lug_gap_mps            # a downshift stops the move only while
+    lug_gap_fraction: float = _LUG.lug_gap_fraction  # the goal still leads the speed as the
+                                                     # hint's lugging needs (speed_hints); a
+                                                     # module slowing on purpose is not lugging
+    asking_band_mps: float = 0.3   # an upshift stops the move only while the goal is at most
+                                   # this below the speed (the speed loop's overshoot bound,
+                                   # tests/servers/test_speed_acceptance.py): not while slowing
 
 
 def time_to_cover_s(distance_m: float, speed_mps: float, accel_mps2: float,
@@ -98,21 +108,23 @@ class GearHints:
         ``speed_mps`` the module's (unsigned), ``remaining_m`` what is left of the
         authorization, ``limit_mps`` the lowest live speed limit, ``sin_pitch`` + uphill,
         ``goal_mps`` the goal speed last sent. A vehicle slowing because its goal is lower
-        (the end of a move) is not lugging: only the preference is noted then."""
+        (the end of a move) is not lugging, whatever hint is still held: only the preference
+        is noted then."""
         p = self.params
         self.now_gear = None
         if server_state != "run" or server_gear not in self._forward:
             return
-        asking = goal_mps >= speed_mps
+        cfg = self.config
+        lug_gap = min(cfg.lug_gap_mps, cfg.lug_gap_fraction * goal_mps)
         if hint == "suggest_downshift" and server_gear != p.low_gear:
             self.prefer_low = True
-            accel = -math.inf if speed_mps < self.config.stopped_mps else accel_mps2
-            if asking:
+            accel = -math.inf if speed_mps < cfg.stopped_mps else accel_mps2
+            if goal_mps - speed_mps >= lug_gap:   # still lugging now, not slowing on purpose
                 self._consider(p.low_gear, server_gear, accel, speed_mps, remaining_m,
                                limit_mps, sin_pitch)
         elif hint == "suggest_upshift" and server_gear != p.drive_gear:
             self.prefer_low = False
-            if asking:
+            if goal_mps >= speed_mps - cfg.asking_band_mps:
                 self._consider(p.drive_gear, server_gear, 0.0, speed_mps, remaining_m,
                                limit_mps, sin_pitch)
 

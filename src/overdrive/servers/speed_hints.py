@@ -8,7 +8,8 @@ RPM too high for vehicle speed", "slipping: Odometer and radar indicate slipping
 Decisions (docs/speed-server.md, "Hints"):
 
 - **Downshift = lugging.** In a forward gear that pulls less than the preset's low gear, at
-  (nearly) full throttle, at least ``lug_gap_mps`` below the target the gear allows and gaining
+  (nearly) full throttle, at least ``lug_gap_mps`` (or half the target, if less) below the
+  target the gear allows and gaining
   less than ``lug_accel_mps2``, slow enough for the low gear (ground speed below its cap, so the
   rpm after the shift stays in range), for ``lug_time_s``. Judged against the *target*, not the
   controller's speed reference: the reference never leads the measured speed by more than
@@ -47,7 +48,9 @@ class HintConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     lug_throttle_pct: float = 80.0       # "full" throttle: above what the speed loop needs to
                                          # accelerate at the comfort 1.5 m/s^2 on the flat (~75 %)
     lug_gap_mps: float = 0.5             # behind the target by this much (25 sigma of the
-                                         # GPS/INS speed noise): not just easing into it
+                                         # GPS/INS speed noise): not just easing into it ...
+    lug_gap_fraction: float = 0.5        # ... or by half a slower target (a creep to the end of
+                                         # a move: 0.3 m/s, stalled 0.15 m/s behind)
     lug_accel_mps2: float = 0.3          # ... and gaining less than this (a fifth of the driving
                                          # module's comfort 1.5 m/s^2; 6x the IMU noise)
     lug_time_s: float = 1.0              # ... for this long (throttle lag 0.15 s + the 0.2 s
@@ -141,7 +144,7 @@ class HintMonitor:
             return False
         v = gear.direction * speed_mps
         return (throttle_pct >= cfg.lug_throttle_pct
-                and target_mps - v >= cfg.lug_gap_mps
+                and target_mps - v >= min(cfg.lug_gap_mps, cfg.lug_gap_fraction * target_mps)
                 and gear.direction * accel_mps2 < cfg.lug_accel_mps2
                 and abs(speed_mps) < low.max_speed_mps * self.gear_cap_fraction)
 
