@@ -204,3 +204,102 @@ def test_healthy_runs_are_unchanged(monkeypatch, preset, grade_percent) -> None:
     deaf(monkeypatch)
     unheard = run(preset, [(0.0, grade_percent)], distance_m=40.0, duration_s=30.0)
     assert heard.trace[-1] == unheard.trace[-1]
+
+
+# --------------------------------------------------------------------------- red team
+
+HILL = [(0.0, 0.0), (10.0, 15.0)]
+
+
+def run_events(vehicle: Any, grades: list[tuple[float, float]], events: list[dict],
+               duration_s: float = 70.0, obstacles: list[dict] | None = None) -> Any:
+    data = {"name": "hints-redteam", "vehicle": vehicle, "start": "ready",
+            "duration_s": duration_s,
+            "world": {"friction": 0.8, "obstacles": obstacles or [], "grade_percent": [
+                {"from_m": f, "grade_percent": g} for f, g in grades]},
+            "events": events}
+    return run_scenario(parse_scenario(data), None)
+
+
+MOVE_60 = {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 5, "curvature_1pm": 0}}
+
+
+def x_at(result, t_s: float) -> float:
+    return next(float(r["x_m"]) for r in result.trace if float(r["t_s"]) >= t_s - 1e-9)
+
+
+@pytest.mark.parametrize("stop_s", [7.7, 8.5, 10.0, 13.0])   # stopping, shifting, runwait
+def test_a_stop_during_the_gear_change_holds_and_the_next_move_climbs(stop_s) -> None:
+    result = run_events(LOADED_RANGER, HILL, [
+        MOVE_60, {"at_s": stop_s, "stop": {}},
+        {"at_s": 20.0, "move": {"distance_m": 40, "maxspeed_mps": 5, "curvature_1pm": 0}}])
+    assert result.summary["violations"] == []
+    assert x_at(result, 19.9) - x_at(result, stop_s) < 1.0       # held after the STOP
+    assert xs(result)[-1] - x_at(result, 20.0) >= 39.3
+    assert abs(result.summary["final"]["speed_mps"]) < 0.05
+
+
+def test_a_new_move_during_the_runwait_is_driven_in_low() -> None:
+    result = run_events(LOADED_RANGER, HILL, [
+        MOVE_60, {"at_s": 11.0, "move": {"distance_m": 30, "maxspeed_mps": 4,
+                                         "curvature_1pm": 0}}])
+    assert result.summary["violations"] == []
+    assert xs(result)[-1] - x_at(result, 11.0) >= 29.3
+    assert result.summary["final"]["gear"] == "low6wd"
+
+
+def test_an_obstacle_on_the_hill_after_the_downshift_is_not_hit() -> None:
+    result = run_events(LOADED_RANGER, HILL, [MOVE_60], obstacles=[{"x_m": 45.0, "y_m": 0.0}])
+    assert result.summary["violations"] == []
+    assert "suggest_downshift" in [e.get("hint") for e in result.summary["events"]]
+
+
+def test_lugging_in_a_curve_on_the_hill() -> None:
+    result = run_events(LOADED_RANGER, HILL, [
+        {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 5, "curvature_1pm": 0.02}}])
+    assert result.summary["violations"] == []
+    assert result.summary["odometer_m"] >= 59.3
+    assert result.summary["final"]["gear"] == "low6wd"
+
+
+@pytest.mark.parametrize(("preset", "effectiveness"), [("ranger-6x6", 0.2),
+                                                       ("escape-hybrid", 0.1)])
+def test_a_weak_throttle_lugs_on_the_flat_and_the_low_gear_gets_there(preset, effectiveness):
+    """A weak engine lugs like a load: the hint helps it too (the model does not know the
+    weakness, so an upshift may be hinted later; it only lifts the preference)."""
+    result = run_events(preset, [(0.0, 0.0)], [
+        MOVE_60, {"at_s": 0.2, "actuator": {"throttle": {"effectiveness": effectiveness}}}])
+    assert result.summary["violations"] == []
+    assert max(xs(result)) >= 59.3
+    assert_upshifts_only_at_speed(result, preset)
+
+
+@pytest.mark.parametrize(("mass_kg", "grade_percent"), [(1700.0, 15.0), (1600.0, 16.0)])
+def test_a_hill_start_in_high_that_cannot_climb_downshifts(mass_kg, grade_percent) -> None:
+    result = run_events({"preset": "ranger-6x6", "mass_kg": mass_kg},
+                        [(0.0, grade_percent)], [MOVE_60])
+    assert result.summary["violations"] == []
+    assert max(xs(result)) >= 59.3
+    assert result.summary["final"]["gear"] == "low6wd"
+
+
+def test_reversing_after_a_downshift_and_forward_again() -> None:
+    result = run_events(LOADED_RANGER, HILL, [
+        MOVE_60, {"at_s": 35.0, "reverse": {"distance_m": 5, "maxspeed_mps": 1,
+                                            "curvature_1pm": 0}},
+        {"at_s": 55.0, "move": {"distance_m": 10, "maxspeed_mps": 5, "curvature_1pm": 0}}],
+        duration_s=80.0)
+    assert result.summary["violations"] == []
+    assert x_at(result, 54.9) == pytest.approx(x_at(result, 35.0) - 5.0, abs=0.5)   # reversed 5 m
+    assert xs(result)[-1] == pytest.approx(x_at(result, 54.9) + 10.0, abs=0.7)
+    assert result.summary["final"]["gear"] == "low6wd"           # still preferred going forward
+
+
+@pytest.mark.xfail(strict=True, reason="issue 16 case 2: a hill start with a throttle that does "
+                                       "not respond rolls back (the hill-start brake hold, H3)")
+def test_throttle_stuck_closed_during_the_gear_change_does_not_roll_back() -> None:
+    """Found by attacking the downshift: the throttle sticks at 0 while the vehicle stands for
+    the shift; the restart in low6wd releases the brake on the 15 % grade."""
+    result = run_events(LOADED_RANGER, HILL, [
+        MOVE_60, {"at_s": 9.0, "actuator": {"throttle": {"stuck": True}}}])
+    assert result.summary["violations"] == []
