@@ -5,14 +5,16 @@ then closed loop against the plant (set_speed scenarios: the speed server alone)
 from __future__ import annotations
 
 import math
+import typing
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from overdrive import messages
 from overdrive.scenario import parse_scenario
 from overdrive.servers.speed import SpeedServerConfig
-from overdrive.servers.speed_hints import HintConfig, HintInputs, HintMonitor
+from overdrive.servers.speed_hints import HINTS, HintConfig, HintInputs, HintMonitor
 from overdrive.sim import run_scenario
 from overdrive.vehicle.presets import G_MPS2, PRESETS, VehicleParams
 from tests.conftest import PRESET_NAMES
@@ -247,6 +249,12 @@ def test_no_upshift_below_85_percent_of_the_gears_speed(preset, speed_share, rpm
 
 
 # --------------------------------------------------------------------------- order and hold
+
+def test_the_five_hints_are_the_whole_set():
+    """Seed 001 "(others to be defined)": decided, none (docs/speed-server.md, Hints)."""
+    assert set(typing.get_args(messages.Hint)) == set(HINTS)
+    assert HINTS[0] == "none"
+
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_slipping_and_slowdown_come_before_a_downshift(preset):
