@@ -167,6 +167,20 @@ def test_an_upshift_stops_the_move_only_while_the_goal_is_near_the_speed(preset,
     assert (h.now_gear == p.drive_gear) is considered
 
 
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize(("limit_over_cap_mps", "lifted", "now"), [
+    (-1.0, False, False), (0.0, False, False), (EPS, True, False), (2.0, True, True)])
+def test_an_upshift_is_ignored_when_the_limit_gains_nothing(preset, limit_over_cap_mps, lifted,
+                                                            now):
+    p = PRESETS[preset]
+    h = hints(preset)
+    h.prefer_low = True
+    v = cap(preset, p.low_gear)
+    h.update("suggest_upshift", "run", p.low_gear, v, 0.0, 1e5, v + limit_over_cap_mps, 0.0, v)
+    assert h.prefer_low is not lifted
+    assert (h.now_gear == p.drive_gear) is now
+
+
 def test_a_slow_climb_that_low_gear_barely_improves_is_finished_in_drive():
     """escape-hybrid towing (3,400 kg) on 14 %: drive gains 0.1 m/s^2, low only 0.3 more; the
     stop and the 5 s runwait would lose more than low gains over 46 m."""

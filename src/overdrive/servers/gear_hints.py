@@ -7,7 +7,8 @@ you intend to spend some time in that gear." The driving module is the speed ser
 client here, so it is the one that acts (docs/driving-module.md, "Acting on hints"):
 
 - ``suggest_downshift`` (lugging) makes the preset's low gear preferred; ``suggest_upshift``
-  (the drive gear could carry this speed here) lifts that preference. The preference joins the
+  (the drive gear could carry this speed here) lifts that preference, unless the speed limit
+  is no higher than the current gear's cap (nothing to gain). The preference joins the
   other reasons for low gear (``wants_low_gear``: a low limit, steep or slippery ground).
 - **Worth the stop.** A hinted gear is taken at once (stop, idle, shift, restart) only when it
   reaches the end of the authorization sooner: ``cost + d / v_new < time to cover d as now``,
@@ -123,6 +124,8 @@ class GearHints:
                 self._consider(p.low_gear, server_gear, accel, speed_mps, remaining_m,
                                limit_mps, sin_pitch)
         elif hint == "suggest_upshift" and server_gear != p.drive_gear:
+            if min(limit_mps, self._caps[p.drive_gear]) <= self._caps.get(server_gear, 0.0):
+                return   # under this limit the drive gear would go no faster: nothing to gain
             self.prefer_low = False
             if goal_mps >= speed_mps - cfg.asking_band_mps:
                 self._consider(p.drive_gear, server_gear, 0.0, speed_mps, remaining_m,
