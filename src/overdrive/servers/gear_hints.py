@@ -10,14 +10,14 @@ client here, so it is the one that acts (docs/driving-module.md, "Acting on hint
   (the drive gear could carry this speed here) lifts that preference, unless the speed limit
   is no higher than the current gear's cap (nothing to gain). The preference joins the
   other reasons for low gear (``wants_low_gear``: a low limit, steep or slippery ground).
-- **Worth the stop.** A hinted gear is taken at once (stop, idle, shift, restart) only when it
-  reaches the end of the authorization sooner: ``cost + d / v_new < time to cover d as now``,
-  where ``d`` is what is left of the authorization and ``cost`` what a stop-shift-restart
-  loses against driving on: the shift (preset), the runwait (seed 001: five seconds), the
-  request round trips, and half the time of braking to a stop and of accelerating back. A
-  vehicle lugging to a standstill never covers ``d`` as it is: it always changes at once.
-  Otherwise the move is finished in the current gear and the gear changes at the stop that
-  ends it (``_plan_gear``'s rule for a natural stop).
+- **Worth the stop.** A hinted gear is taken at once (stop, idle, shift, restart) only when
+  that reaches the end of the authorization sooner (``change_time_s < time_to_cover_s``): the
+  stop, the shift (preset), the runwait (seed 001: five seconds), the request round trips, then
+  the rest of ``d`` (what is left of the authorization) from a standstill in the new gear;
+  against ``d`` driven as now. A vehicle losing speed at full throttle that would stall before
+  the end never covers ``d`` as it is: it always changes at once. Otherwise the move is
+  finished in the current gear and the gear changes at the stop that ends it
+  (``_plan_gear``'s rule for a natural stop).
 """
 
 from __future__ import annotations
