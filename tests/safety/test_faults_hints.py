@@ -163,6 +163,23 @@ def test_towing_escape_acts_only_when_low_gear_pays(monkeypatch, grade_percent) 
     assert reached_s(heard, 59.3) <= reached_s(unheard, 59.3) + 0.05
 
 
+@pytest.mark.parametrize(("mass_kg", "grade_percent"), [(3600.0, 14.5), (3800.0, 14.0)])
+def test_overloaded_escape_climbs_only_by_acting_on_the_hint(monkeypatch, mass_kg,
+                                                              grade_percent) -> None:
+    """escape-hybrid far beyond its towing rating (the mechanism on the second preset): drive
+    cannot climb, low can, the grade is below its 14.7 % steep threshold."""
+    vehicle = {"preset": "escape-hybrid", "mass_kg": mass_kg}
+    grades = [(0.0, 0.0), (10.0, grade_percent)]
+    heard = run(vehicle, grades)
+    assert heard.summary["violations"] == []
+    assert max(xs(heard)) >= 59.3
+    assert heard.summary["final"]["gear"] == "low"
+    deaf(monkeypatch)
+    unheard = run(vehicle, grades)
+    assert max(xs(unheard)) < 45.0
+    assert unheard.summary["final"]["gear"] == "drive"
+
+
 # --------------------------------------------------------------------------- upshift
 
 HILL_THEN_FLAT = [(0.0, 0.0), (10.0, 15.0), (40.0, 0.0)]
