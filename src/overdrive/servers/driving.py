@@ -50,6 +50,7 @@ from overdrive.messages import (
     VehicleStatus,
 )
 from overdrive.servers.anchoring import OdometerHistory
+from overdrive.servers.gear_hints import GearHints
 from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
@@ -427,6 +428,8 @@ class DrivingModule:
         self._sensor_rejection = ""
         self.planned_gear = params.drive_gear
         self._wish: tuple[str, float] | None = None
+        self.gear_hints = GearHints(params, gear_speed_fraction=cfg.gear_speed_fraction,
+                                    accel_mps2=cfg.accel_mps2)   # seed 001 hints acted on
         self.request: Request | None = None
         self.next_spss_s = -math.inf
         self.last_now_s: float | None = None
@@ -812,11 +815,16 @@ class DrivingModule:
         """Choose the gear the client sequences towards (hysteresis in docs/driving-module.md)."""
         p, cfg = self.params, self.config
         slippery = now_s - self.slippery_s < cfg.slippery_hold_s
+        server = self.speed_state
         if self.mode.direction == "reverse":
             want = p.reverse_gear
         else:
+            if server is not None:
+                self.gear_hints.update(server.hint, server.state, server.gear, v,
+                                       server.accel_mps2, remaining, source_limit,
+                                       math.sin(pitch), self.goal_mps)
             low = wants_low_gear(p, self.planned_gear == p.low_gear, source_limit, slippery,
-                                 pitch, cfg, self._low_gear_max_mps)
+                                 pitch, cfg, self._low_gear_max_mps) or self.gear_hints.prefer_low
             want = p.low_gear if low else p.drive_gear
         if want == self.planned_gear:
             self._wish = None
@@ -828,7 +836,6 @@ class DrivingModule:
             return
         if self._wish is None or self._wish[0] != want:
             self._wish = (want, now_s)
-        server = self.speed_state
         if server is None:
             return   # the speed server's state is unknown: no gear change can be judged free
         state = server.state
@@ -840,7 +847,8 @@ class DrivingModule:
             return   # on its way to a gear already; changing now would cost another runwait
         free = state in ("parked", "reset", "starting", "startwait", "paused") or (
             state == "idle" and stopped)
-        if free or (held and stopped and (terrain or idle_time)):
+        hinted_now = self.mode.direction != "reverse" and self.gear_hints.now_gear == want
+        if free or (held and stopped and (terrain or idle_time)) or hinted_now:
             self.planned_gear = want
             self._wish = None
 

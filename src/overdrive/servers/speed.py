@@ -50,6 +50,7 @@ from overdrive.servers.speed_control import (
     LongitudinalGains,
     gains_for,
 )
+from overdrive.servers.speed_hints import HintConfig, HintInputs, HintMonitor
 from overdrive.servers.speed_table import (
     CLIENT_FAULT_MAX,
     REQUESTABLE,
@@ -96,14 +97,7 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
     invalid_stop_decel_mps2: float = 2.5  # an invalid request stops the vehicle at least this hard:
                                           # the XGV's own pause deceleration (seed 000, xgv.md)
     fault_hold_s: float = 1.0            # a fault stays in the replies at least this long
-    hint_hold_s: float = 1.0             # a hint stays at least this long (no chatter)
-    slip_min_mps: float = 0.5            # wheel vs ground speed disagreement that is slipping ...
-    slip_fraction: float = 0.15          # ... or this share of the ground speed, if larger
-    slip_time_s: float = 0.2             # ... for at least this long
-    upshift_rpm_fraction: float = 0.85   # rpm share of idle..redline that suggests an upshift
-    slowdown_rpm_fraction: float = 0.97  # rpm share that suggests slowing down
-    lugging_throttle_pct: float = 80.0   # high gear, this much throttle, not keeping up: downshift
-    lugging_time_s: float = 1.0
+    hints: HintConfig = HintConfig()     # seed 001 hints' thresholds (servers.speed_hints)
     gains: LongitudinalGains | None = None  # None: the preset's tuned gains (speed_control.GAINS)
 
 
@@ -127,7 +121,6 @@ class SpeedServer:
         self.config = cfg = config or SpeedServerConfig()
         self.max_accel_mps2 = max(cfg.max_request_accel_mps2, params.max_brake_decel_mps2)
         self.gears = GearTable(params)
-        self._low_gear = self.gears.get(params.low_gear)
         self._start_timeout_s = params.crank_time_s + cfg.start_timeout_margin_s
         self._shift_timeout_s = params.shift_time_s + cfg.shift_timeout_margin_s
         self._handlers: dict[type, Any] = {}   # message type -> _read_inputs handler
@@ -173,10 +166,8 @@ class SpeedServer:
         self.last_rejection: tuple[int, str] | None = None
         self.last_input_rejection = ""
         # hints
+        self.hints = HintMonitor(params, cfg.hints, cfg.gear_cap_fraction)
         self.hint = "none"
-        self.hint_since_s = -math.inf
-        self.slip_since_s: float | None = None
-        self.lug_since_s: float | None = None
         self.pedals = PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE)
 
     # ------------------------------------------------------------------ node
@@ -503,10 +494,6 @@ class SpeedServer:
             self.controller.reset(direction * self.speed_filt_mps,
                                   direction * self.accel_filt_mps2, self.pedals.brake_pct)
 
-    def _low_gear_top_mps(self) -> float:
-        low = self._low_gear
-        return (low if low is not None else self.params.gear(self.params.low_gear)).max_speed_mps
-
     def _gear(self) -> Gear:
         gear = self.gears.get(self.gear_cmd)
         return gear if gear is not None else self.params.gear(self.gear_cmd)   # raises KeyError
@@ -557,45 +544,21 @@ class SpeedServer:
                              source=SOURCE), powertrain)
 
     def _update_hint(self, now_s: float) -> None:
-        """Seed 001 hints; each one is held ``hint_hold_s`` so the client sees no chatter."""
-        cfg = self.config
-        p = self.params
+        """Seed 001 hints (``servers.speed_hints``), from the vehicle as this period saw it."""
         status = self.status
-        hint = "none"
+        view = None
         if self.state == "run" and status is not None:
             gear = self._gear()
-            ground = self.speed_mps
-            wheel = self.wheel_mps if self.wheel_mps is not None else ground
-            disagree = abs(wheel - ground) > max(cfg.slip_min_mps, cfg.slip_fraction * abs(ground))
-            if status.traction_control or disagree:
-                if self.slip_since_s is None:
-                    self.slip_since_s = now_s
-            else:
-                self.slip_since_s = None
-            rpm_frac = (status.engine_rpm - p.idle_rpm) / max(p.redline_rpm - p.idle_rpm, 1.0)
-            lugging = (gear.name == p.drive_gear and status.throttle_pct >= cfg.lugging_throttle_pct
-                       and self.controller.v_ref_mps - gear.direction * ground > 0.5
-                       and abs(ground) < self._low_gear_top_mps() * cfg.gear_cap_fraction)
-            if lugging:
-                if self.lug_since_s is None:
-                    self.lug_since_s = now_s
-            else:
-                self.lug_since_s = None
-            cap = gear.max_speed_mps * cfg.gear_cap_fraction
-            if self.slip_since_s is not None and now_s - self.slip_since_s >= cfg.slip_time_s:
-                hint = "slipping"
-            elif rpm_frac >= cfg.slowdown_rpm_fraction:
-                hint = "suggest_slowdown"
-            elif self.lug_since_s is not None and now_s - self.lug_since_s >= cfg.lugging_time_s:
-                hint = "suggest_downshift"
-            elif (gear.direction > 0 and gear.name != p.drive_gear
-                  and (rpm_frac >= cfg.upshift_rpm_fraction
-                       or (self.goal == "run" and self.target_mps > cap))):
-                hint = "suggest_upshift"
-        else:
-            self.slip_since_s = self.lug_since_s = None
-        if hint != self.hint and (hint != "none" or now_s - self.hint_since_s >= cfg.hint_hold_s):
-            self.hint, self.hint_since_s = hint, now_s
+            target = 0.0
+            if self.goal == "run":
+                target = min(self.target_mps, gear.max_speed_mps * self.config.gear_cap_fraction)
+            pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+            view = HintInputs(gear=gear, speed_mps=self.speed_mps, wheel_mps=self.wheel_mps,
+                              accel_mps2=self.accel_filt_mps2, target_mps=target,
+                              sin_pitch=math.sin(pitch), engine_rpm=status.engine_rpm,
+                              throttle_pct=status.throttle_pct,
+                              traction_control=status.traction_control)
+        self.hint = self.hints.update(now_s, view)
 
     def _speed_state(self, fault: int, fault_message: str) -> SpeedState:
         status = self.status
