@@ -65,6 +65,7 @@ from overdrive.jaus import (
     ReadyMode,
     RejectComponentControl,
     ReleaseComponentControl,
+    ReportComponentControl,
     ReportComponentStatus,
     ReportConfiguration,
     ReportDiscreteDevices,
@@ -157,6 +158,10 @@ def _every_field(code: int) -> int:
 
 
 EXPERIMENTAL_CODES: Final = 0xE000   # reference §6: TORC's experimental codes are 0xE___
+
+
+_ONE_SOURCE: Final = (ReportVelocityState.code, ReportGlobalPose.code)   # plain: taken only
+                                     # from the sensor asked (``wanted``), never another one
 
 
 class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
@@ -253,6 +258,7 @@ class XgvClient:
         self.heartbeat_s: float | None = None
         self.link_up = False
         self.control = False
+        self.control_asked = False   # a Request Component Control not yet answered
         self.next_query_s = -math.inf
         self.next_request_s = -math.inf
         self.next_resume_s = -math.inf
@@ -365,6 +371,9 @@ class XgvClient:
             service_connection=True))
 
     def _take(self, m: Message, source: JausId, now_s: float) -> None:
+        if self.plain and m.code in _ONE_SOURCE and source != self.wanted[m.code]:
+            self.stats.foreign += 1   # the speed or pose of another (or a spoofed) component
+            return
         if isinstance(m, ReportHeartbeatPulse):
             self.heartbeat_s = now_s
             if not self.link_up:
@@ -372,12 +381,21 @@ class XgvClient:
                 self.link_up_s = now_s
                 self._told.discard("heartbeat")
         elif isinstance(m, ConfirmComponentControl) and source == self.target:
+            if not self.control_asked:   # a duplicate or a late copy: no control from it
+                self.stats.foreign += 1
+                return
+            self.control_asked = False
             self.control = m.response == ControlResponse.ACCEPTED
             if self.control:
                 self.next_resume_s = -math.inf
             else:
                 self._notice("control", f"{self.target} refused control (response {m.response})")
+        elif isinstance(m, ReportComponentControl) and source == self.target:
+            if self.control and m.controller != self.config.client_id:
+                self._notice("control", f"{self.target} reports {m.controller} in control")
+                self.control = False
         elif isinstance(m, RejectComponentControl) and source == self.target:
+            self.control_asked = False
             if self._not_known_yet(now_s):
                 self.control = False           # retried at once, without a fault
                 self.next_request_s = now_s
@@ -638,6 +656,7 @@ class XgvClient:
             if not self.control and now_s >= self.next_request_s:
                 messages.append(self._to(RequestComponentControl(authority=cfg.authority),
                                          self.target))
+                self.control_asked = True
                 self.next_request_s = now_s + cfg.retry_s
         if self.control:
             paused = (self.pd_status == ComponentStatus.STANDBY if self.plain
