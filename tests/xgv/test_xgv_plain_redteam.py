@@ -253,3 +253,17 @@ def test_heading_across_plus_minus_pi_is_continuous(yaw_rad: float) -> None:
     frame = LocalFrame()
     frame.project(fix(yaw_rad=math.pi), 0.0)
     assert abs(frame.project(fix(yaw_rad=yaw_rad), 0.1).yaw_rad) < 1e-6
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "DEFECT: the jump bound grows with the position rms the fix itself claims "
+    "(plain_jaus.LocalFrame.project), up to the wire's 100 m (6 sqrt 2 x 100 = 849 m at dt 0): "
+    "a degraded or hostile fix 500 m away 20 ms later is accepted, and moves the stack's "
+    "pose, the odometer's chord across a report gap and, in `overdrive drive`, the judge's "
+    "own 'truth'. A fix whose rms exceeds what the projection's checks assume should be "
+    "refused (or the rms capped)."))
+def test_a_fix_claiming_a_huge_rms_cannot_jump_half_a_kilometre() -> None:
+    frame = LocalFrame()
+    frame.project(fix(), 0.0)
+    with pytest.raises(PoseRefused):
+        frame.project(fix(500.0, position_rms_m=100.0), 0.02)
