@@ -113,6 +113,7 @@ from overdrive.vehicle.plain_jaus import (
     JausSensor,
     LocalFrame,
     PoseRefused,
+    SpeedCheck,
     safety_mode_from_status,
 )
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
@@ -242,6 +243,8 @@ class XgvClient:
                 ReportWheelsSpeed.code: self.pd,
             }
         self.frame = LocalFrame()
+        self.speed_check = SpeedCheck()
+        self.speed_implausible = False   # plain: latched; no sensors, so the watchdog e-stops
         self.pd_status: int | None = None      # plain: the PD's primary status, and when
         self.pd_status_s = -math.inf
         self.pose_s = -math.inf                # plain: when a Global Pose was last accepted
@@ -518,7 +521,7 @@ class XgvClient:
         fresh, self.fresh = self.fresh, False
         known = (self.pd_status is not None if self.plain
                  else self.mode is not None and self.discrete is not None)
-        if not (fresh and self.link_up and known):
+        if not (fresh and self.link_up and known) or self.speed_implausible:
             return out
         out.append((Topic.VEHICLE_STATUS, self.plain_status(now_s) if self.plain
                     else self.vehicle_status(now_s)))
@@ -527,6 +530,8 @@ class XgvClient:
         if self.plain and now_s - self.pose_s > ODOMETER_GAP_S:
             pose = None   # refused or missing fixes: no stale position (the move server stops)
         self._odometer(pose)
+        if self.plain and pose is not None and self._speed_reads_low(now_s, pose, out):
+            return out
         pitch = (pose.pitch_rad or 0.0) if pose is not None else 0.0
         roll = (pose.roll_rad or 0.0) if pose is not None else 0.0
         yaw_rate = (self.velocity.yaw_rate_radps or 0.0) if self.velocity is not None else 0.0
@@ -551,6 +556,22 @@ class XgvClient:
                 curvature_1pm=self.curvature_1pm, pitch_rad=pitch, roll_rad=roll,
                 odometer_m=self.odometer_m, slip=False, contact=False)))
         return out
+
+    def _speed_reads_low(self, now_s: float, pose: ReportLocalPose,
+                         out: list[tuple[str, Any]]) -> bool:
+        """Plain: Velocity State checked against the Global Pose (``SpeedCheck``); once it
+        reads low, a fault and no more sensors (the speed server's watchdog e-stops), as a
+        lost heartbeat."""
+        reason = self.speed_check.check(now_s, pose.x_m or 0.0, pose.y_m or 0.0,
+                                        self.odometer_m, pose.position_rms_m or 0.0,
+                                        self.speed_mps)
+        if reason is None:
+            return False
+        self.speed_implausible = True
+        self._notice("speed", reason)
+        out.extend((Topic.NOTICE, n) for n in self.notices)
+        self.notices.clear()
+        return True
 
     def _odometer(self, pose: ReportLocalPose | None) -> None:
         """Path length: the velocity integrated, or across a gap in the reports (a lost link)
