@@ -438,7 +438,9 @@ def test_a_reject_just_after_openjaus_asked_our_configuration_is_retried(
         source=XGV_NM, destination=JausId(1, 2, 1, 1))
     client.receive(encode_datagram(framed), 0.01)
     assert client.registered
-    deliver(client, ConfirmComponentControl(response=0), PD, 0.01)
+    assert any(isinstance(m, RequestComponentControl) for m in sent(client, 0.01))
+    deliver(client, ConfirmComponentControl(response=0), PD, 0.01)   # its answer
+    assert client.control
     deliver(client, RejectComponentControl(), PD, 0.01 + after_s)
     assert not client.control
     faults = [n.code for n in client.notices]

@@ -19,6 +19,11 @@ Global Pose fixes are validated before anything uses them (``LocalFrame.project`
 without latitude, longitude or yaw, with a value outside its range or not finite, beyond the
 latitudes where the projection holds, or further from the last accepted fix than any JAUS 3.3
 speed allows, is refused with a reason and never moves the stack's pose.
+
+Velocity State is the plain vehicle's only speed (it is both the stack's wheel speed and its
+GPS speed, and its integral is the odometer the move server stops on), so it is checked
+against the Global Pose, an independent sensor (``SpeedCheck``): accepted poses further apart
+than the odometer says were driven, beyond the position noise, mean the speed reads low.
 """
 
 from __future__ import annotations
@@ -39,6 +44,12 @@ PLAUSIBLE_SPEED_MPS: Final = 65.534   # the largest speed JAUS 3.3 can report (V
                                       # velocity x, reference §5): no vehicle jumps faster
 DEFAULT_POSITION_RMS_M: Final = 1.0   # a fix without its accuracy: ojVehicleSim's reported rms
 JUMP_NOISE_SIGMAS: Final = 6.0        # position noise allowed on a jump (as REPORTED_POSE_BOUND_M)
+SPEED_CHECK_WINDOW_S: Final = 10.0    # poses compared with the odometer this far back: a speed
+                                      # reading half the truth at 2.5 m/s (1.25 m/s short)
+                                      # exceeds ojVehicleSim's 8.5 m noise bound within it
+SPEED_CHECK_SAMPLE_S: Final = 0.1     # one reference pose per this (100 in the window)
+REPORT_SKEW_S: Final = 0.25           # pose and velocity reports out of step by up to the
+                                      # odometer's gap (xgv_client.ODOMETER_GAP_S): |v| x this
 STATUS_TIMEOUT_S: Final = 1.5         # no component status for this long: unknown (the
                                       # heartbeat timeout; OpenJAUS reports at up to 50 Hz)
 
@@ -71,6 +82,32 @@ def safety_mode_from_status(primary_status: int | None, control: bool) -> str:
 
 def _wrap_rad(angle_rad: float) -> float:
     return math.atan2(math.sin(angle_rad), math.cos(angle_rad))
+
+
+class SpeedCheck:
+    """Velocity State against Global Pose: the straight line between two accepted poses can
+    never be longer than the path driven between them (the odometer, integrated |speed|) by
+    more than the position noise of the pair (``JUMP_NOISE_SIGMAS`` sqrt 2 rms) and the
+    reports' skew. Only a speed reading low is caught (a high one stops the move early)."""
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, float, float, float]] = []   # t (s), x, y, odometer (m)
+
+    def check(self, now_s: float, x_m: float, y_m: float, odometer_m: float, rms_m: float,
+              speed_mps: float) -> str | None:
+        """None while plausible, else the reason (the speed reads low)."""
+        allowed_m = JUMP_NOISE_SIGMAS * math.sqrt(2.0) * rms_m + abs(speed_mps) * REPORT_SKEW_S
+        while self.samples and now_s - self.samples[0][0] > SPEED_CHECK_WINDOW_S:
+            self.samples.pop(0)
+        for t_s, x0_m, y0_m, odometer0_m in self.samples:
+            chord_m = math.hypot(x_m - x0_m, y_m - y0_m)
+            driven_m = odometer_m - odometer0_m
+            if chord_m - driven_m > allowed_m:
+                return (f"Velocity State reads low: the Global Pose moved {chord_m:.1f} m in "
+                        f"{now_s - t_s:.1f} s, the speed says {driven_m:.1f} m")
+        if not self.samples or now_s - self.samples[-1][0] >= SPEED_CHECK_SAMPLE_S:
+            self.samples.append((now_s, x_m, y_m, odometer_m))
+        return None
 
 
 class PoseRefused(ValueError):
@@ -123,4 +160,5 @@ class LocalFrame:
             attitude_rms_rad=fix.attitude_rms_rad, timestamp=fix.timestamp)
 
 
-__all__ = ["JAUS_PROFILES", "JausProfile", "JausSensor", "LocalFrame", "PoseRefused", "safety_mode_from_status"]
+__all__ = ["JAUS_PROFILES", "JausProfile", "JausSensor", "LocalFrame", "PoseRefused", "SpeedCheck",
+           "safety_mode_from_status"]

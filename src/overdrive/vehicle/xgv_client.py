@@ -65,6 +65,7 @@ from overdrive.jaus import (
     ReadyMode,
     RejectComponentControl,
     ReleaseComponentControl,
+    ReportComponentControl,
     ReportComponentStatus,
     ReportConfiguration,
     ReportDiscreteDevices,
@@ -112,6 +113,7 @@ from overdrive.vehicle.plain_jaus import (
     JausSensor,
     LocalFrame,
     PoseRefused,
+    SpeedCheck,
     safety_mode_from_status,
 )
 from overdrive.vehicle.presets import G_MPS2, VehicleParams
@@ -157,6 +159,10 @@ def _every_field(code: int) -> int:
 
 
 EXPERIMENTAL_CODES: Final = 0xE000   # reference §6: TORC's experimental codes are 0xE___
+
+
+_ONE_SOURCE: Final = (ReportVelocityState.code, ReportGlobalPose.code)   # plain: taken only
+                                     # from the sensor asked (``wanted``), never another one
 
 
 class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
@@ -237,6 +243,8 @@ class XgvClient:
                 ReportWheelsSpeed.code: self.pd,
             }
         self.frame = LocalFrame()
+        self.speed_check = SpeedCheck()
+        self.speed_implausible = False   # plain: latched; no sensors, so the watchdog e-stops
         self.pd_status: int | None = None      # plain: the PD's primary status, and when
         self.pd_status_s = -math.inf
         self.pose_s = -math.inf                # plain: when a Global Pose was last accepted
@@ -253,6 +261,7 @@ class XgvClient:
         self.heartbeat_s: float | None = None
         self.link_up = False
         self.control = False
+        self.control_asked = False   # a Request Component Control not yet answered
         self.next_query_s = -math.inf
         self.next_request_s = -math.inf
         self.next_resume_s = -math.inf
@@ -365,6 +374,9 @@ class XgvClient:
             service_connection=True))
 
     def _take(self, m: Message, source: JausId, now_s: float) -> None:
+        if self.plain and m.code in _ONE_SOURCE and source != self.wanted[m.code]:
+            self.stats.foreign += 1   # the speed or pose of another (or a spoofed) component
+            return
         if isinstance(m, ReportHeartbeatPulse):
             self.heartbeat_s = now_s
             if not self.link_up:
@@ -372,12 +384,21 @@ class XgvClient:
                 self.link_up_s = now_s
                 self._told.discard("heartbeat")
         elif isinstance(m, ConfirmComponentControl) and source == self.target:
+            if not self.control_asked:   # a duplicate or a late copy: no control from it
+                self.stats.foreign += 1
+                return
+            self.control_asked = False
             self.control = m.response == ControlResponse.ACCEPTED
             if self.control:
                 self.next_resume_s = -math.inf
             else:
                 self._notice("control", f"{self.target} refused control (response {m.response})")
+        elif isinstance(m, ReportComponentControl) and source == self.target:
+            if self.control and m.controller != self.config.client_id:
+                self._notice("control", f"{self.target} reports {m.controller} in control")
+                self.control = False
         elif isinstance(m, RejectComponentControl) and source == self.target:
+            self.control_asked = False
             if self._not_known_yet(now_s):
                 self.control = False           # retried at once, without a fault
                 self.next_request_s = now_s
@@ -500,7 +521,7 @@ class XgvClient:
         fresh, self.fresh = self.fresh, False
         known = (self.pd_status is not None if self.plain
                  else self.mode is not None and self.discrete is not None)
-        if not (fresh and self.link_up and known):
+        if not (fresh and self.link_up and known) or self.speed_implausible:
             return out
         out.append((Topic.VEHICLE_STATUS, self.plain_status(now_s) if self.plain
                     else self.vehicle_status(now_s)))
@@ -509,6 +530,8 @@ class XgvClient:
         if self.plain and now_s - self.pose_s > ODOMETER_GAP_S:
             pose = None   # refused or missing fixes: no stale position (the move server stops)
         self._odometer(pose)
+        if self.plain and pose is not None and self._speed_reads_low(now_s, pose, out):
+            return out
         pitch = (pose.pitch_rad or 0.0) if pose is not None else 0.0
         roll = (pose.roll_rad or 0.0) if pose is not None else 0.0
         yaw_rate = (self.velocity.yaw_rate_radps or 0.0) if self.velocity is not None else 0.0
@@ -533,6 +556,22 @@ class XgvClient:
                 curvature_1pm=self.curvature_1pm, pitch_rad=pitch, roll_rad=roll,
                 odometer_m=self.odometer_m, slip=False, contact=False)))
         return out
+
+    def _speed_reads_low(self, now_s: float, pose: ReportLocalPose,
+                         out: list[tuple[str, Any]]) -> bool:
+        """Plain: Velocity State checked against the Global Pose (``SpeedCheck``); once it
+        reads low, a fault and no more sensors (the speed server's watchdog e-stops), as a
+        lost heartbeat."""
+        reason = self.speed_check.check(now_s, pose.x_m or 0.0, pose.y_m or 0.0,
+                                        self.odometer_m, pose.position_rms_m or 0.0,
+                                        self.speed_mps)
+        if reason is None:
+            return False
+        self.speed_implausible = True
+        self._notice("speed", reason)
+        out.extend((Topic.NOTICE, n) for n in self.notices)
+        self.notices.clear()
+        return True
 
     def _odometer(self, pose: ReportLocalPose | None) -> None:
         """Path length: the velocity integrated, or across a gap in the reports (a lost link)
@@ -638,6 +677,7 @@ class XgvClient:
             if not self.control and now_s >= self.next_request_s:
                 messages.append(self._to(RequestComponentControl(authority=cfg.authority),
                                          self.target))
+                self.control_asked = True
                 self.next_request_s = now_s + cfg.retry_s
         if self.control:
             paused = (self.pd_status == ComponentStatus.STANDBY if self.plain
