@@ -66,7 +66,10 @@ class RadarConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_on
                                         # much beyond it: 10x the range resolution + GPS noise
     see_through_angle_rad: float = 0.02  # ...and the point lies this far inside the cone
                                         # (heading noise and a target's angular extent)
-    merge_m: float = 0.3                # a new reading this close to a remembered one replaces it
+    merge_m: float = 0.3                # a new reading this close to a remembered one is the same
+                                        # target (10x the GPS/INS position noise)
+    merge_readings: int = 20            # running mean over up to this many readings (0.2 s):
+                                        # GPS/INS noise / 4.5, still follows a slow target
     max_targets: int = 32               # memory bound (nearest kept): ~a cone full of clutter
     hold_gap_m: float = 1.0             # untrusted radar: stop this much more short of the end
                                         # of the verified range than the e-stop margin
@@ -128,7 +131,7 @@ class RadarCorridor:
         self.config = cfg = config or RadarConfig()
         self.front_m = params.length_m - params.rear_overhang_m   # rear axle -> front bumper
         self.half_width_m = 0.5 * params.width_m
-        self.targets: list[tuple[float, float]] = []   # remembered world points
+        self.targets: list[tuple[float, float, int]] = []   # remembered world points, readings
         self.trail: deque[tuple[float, float]] = deque(
             maxlen=max(2, int(cfg.trail_length_m / cfg.trail_spacing_m)))
         self.trail_odometer_m: float | None = None
@@ -219,7 +222,7 @@ class RadarCorridor:
         bx, by = pose.x_m + self.front_m * c, pose.y_m + self.front_m * s
         keep = []
         cone = p.radar_half_angle_rad - cfg.see_through_angle_rad
-        for tx, ty in self.targets:
+        for tx, ty, n in self.targets:
             dx, dy = tx - bx, ty - by
             along, left = dx * c + dy * s, -dx * s + dy * c
             rng = math.hypot(dx, dy)
@@ -228,12 +231,19 @@ class RadarCorridor:
                 continue                       # the radar looks through where it was
             if along < -p.length_m:
                 continue                       # behind the vehicle: passed
-            keep.append((tx, ty))
+            keep.append((tx, ty, n))
         if msg.target:
             b = pose.heading_rad + (msg.bearing_rad or 0.0)
-            tx, ty = bx + msg.range_m * math.cos(b), by + msg.range_m * math.sin(b)
-            keep = [t for t in keep if math.hypot(t[0] - tx, t[1] - ty) > cfg.merge_m]
-            keep.append((tx, ty))
+            x, y = bx + msg.range_m * math.cos(b), by + msg.range_m * math.sin(b)
+            near = [t for t in keep if math.hypot(t[0] - x, t[1] - y) <= cfg.merge_m]
+            if near:   # the same target again: a running mean averages the pose noise out
+                tx, ty, n = min(near, key=lambda t: math.hypot(t[0] - x, t[1] - y))
+                keep.remove((tx, ty, n))
+                w = 1.0 / (n + 1)
+                x, y, n = tx + w * (x - tx), ty + w * (y - ty), min(n + 1, cfg.merge_readings)
+            else:
+                n = 1
+            keep.append((x, y, n))
         if len(keep) > cfg.max_targets:
             keep.sort(key=lambda t: math.hypot(t[0] - bx, t[1] - by))
             keep = keep[:cfg.max_targets]
@@ -245,7 +255,7 @@ class RadarCorridor:
         best = math.inf
         keep = []
         hw, margin, front = self.half_width_m, self.config.corridor_margin_m, self.front_m
-        for tx, ty in self.targets:
+        for tx, ty, n in self.targets:
             along, left = to_vehicle(pose, tx, ty)
             ahead = False
             for k in curvatures_1pm:
@@ -255,7 +265,7 @@ class RadarCorridor:
                     if in_corridor(offset, outer, hw, margin, k):
                         best = min(best, dist)
             if ahead or along > front:
-                keep.append((tx, ty))
+                keep.append((tx, ty, n))
         self.targets = keep
         return best
 
