@@ -197,13 +197,20 @@ class RadarCorridor:
             notices.append(self._fault_notice(now_s, fault))
         self.fault = fault
         pose = Pose(gps.x_m, gps.y_m, gps.heading_rad) if gps is not None else None
-        if fault is None and fresh and msg is not None and pose is not None:
+        ks = tuple(curvatures_1pm)
+        self.nearest_m = math.inf
+        if fault is None and fresh and msg is not None:
             if not (msg.target and self.same_since_odometer_m is not None):
                 # a changed reading (or a clear road): the path is seen clear up to its range
                 self.clear_end_m = odo + msg.range_m
-            self._observe(pose, msg)
-        self.nearest_m = self._nearest(pose, tuple(curvatures_1pm)) if pose is not None \
-            else math.inf
+            if msg.target:   # the reading itself, in the vehicle frame: needs no pose
+                b = msg.bearing_rad or 0.0
+                self.nearest_m = self._corridor_distance(
+                    self.front_m + msg.range_m * math.cos(b), msg.range_m * math.sin(b), ks)
+            if pose is not None:
+                self._observe(pose, msg)
+        if pose is not None:
+            self.nearest_m = min(self.nearest_m, self._nearest(pose, ks))
         return notices
 
     def _fault_notice(self, now_s: float, fault: RadarFault) -> Notice:
@@ -249,23 +256,28 @@ class RadarCorridor:
             keep = keep[:cfg.max_targets]
         self.targets = keep
 
+    def _corridor_distance(self, along_m: float, left_m: float,
+                           curvatures_1pm: tuple[float, ...]) -> float:
+        """Path distance to a vehicle-frame point in the corridor of any arc (inf if in none)."""
+        best = math.inf
+        hw, margin, front = self.half_width_m, self.config.corridor_margin_m, self.front_m
+        for k in curvatures_1pm:
+            dist, offset, outer = path_offset(along_m, left_m, k, front, hw)
+            if dist >= 0.0 and in_corridor(offset, outer, hw, margin, k):
+                best = min(best, dist)
+        return best
+
     def _nearest(self, pose: Pose, curvatures_1pm: tuple[float, ...]) -> float:
         """Path distance from the front bumper to the nearest remembered target in the corridor
-        of any of ``curvatures_1pm``; passed targets are forgotten."""
+        of any of ``curvatures_1pm``; targets behind the front bumper are forgotten (passed)."""
         best = math.inf
         keep = []
-        hw, margin, front = self.half_width_m, self.config.corridor_margin_m, self.front_m
         for tx, ty, n in self.targets:
             along, left = to_vehicle(pose, tx, ty)
-            ahead = False
-            for k in curvatures_1pm:
-                dist, offset, outer = path_offset(along, left, k, front, hw)
-                if dist >= 0.0:
-                    ahead = True
-                    if in_corridor(offset, outer, hw, margin, k):
-                        best = min(best, dist)
-            if ahead or along > front:
-                keep.append((tx, ty, n))
+            if along < self.front_m:
+                continue
+            keep.append((tx, ty, n))
+            best = min(best, self._corridor_distance(along, left, curvatures_1pm))
         self.targets = keep
         return best
 
