@@ -241,3 +241,33 @@ def test_reversing_back_over_the_own_track_is_allowed_and_stops_short_of_the_sta
                  duration_s=50)
     assert result.summary["violations"] == []
     assert -blind - 0.3 <= final_x_m(result) <= 0.5, "backed over the whole track"
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("sigma_m", [0.3, 1.0, 3.0])
+@pytest.mark.parametrize(("speed_mps", "offset_m"), [(2.0, 0.6), (8.0, 0.0), (10.0, 0.5)])
+def test_a_noisy_radar_range_still_stops_before_the_obstacle(preset: str, sigma_m: float,
+                                                             speed_mps: float, offset_m: float) -> None:
+    """Red team: range noise scatters the remembered points; the nearest one counts and a point
+    is seen through only 1 m beyond it, so noise stops the vehicle earlier, never later."""
+    result = run(preset, [move(80.0, speed_mps),
+                          {"at_s": 0.2, "sensor": {"name": "radar", "fault": "noise", "for_s": 100,
+                                                   "sigma": sigma_m}}],
+                 {"obstacles": [{"x_m": 45, "y_m": offset_m}]}, duration_s=50)
+    assert result.summary["violations"] == []
+    assert estops(result)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_an_obstacle_in_the_start_up_blind_wedge_is_a_known_limit(preset: str) -> None:
+    """Documented limit (H46): at the corridor's edge, nearer than edge / tan(6 deg), a point is
+    outside the cone from a standstill and is never seen; one just beyond that is stopped for."""
+    p = PRESETS[preset]
+    edge = half_width_m(preset) + MARGIN_M - 0.05
+    front = p.length_m - p.rear_overhang_m
+    wedge_m = edge / math.tan(p.radar_half_angle_rad)
+    seen = run(preset, [move(40.0, 3.0)],
+               {"obstacles": [{"x_m": front + wedge_m + 8.0, "y_m": edge}]})
+    assert seen.summary["violations"] == [] and estops(seen)
+    blind = run(preset, [move(40.0, 3.0)], {"obstacles": [{"x_m": front + 0.5 * wedge_m, "y_m": edge}]})
+    assert not estops(blind)

@@ -27,10 +27,15 @@ command is discarded and the speed server is asked to pause (or to park, when th
 off: it is never restarted without a command that needs it). Nothing moves when the
 interruption ends; the next command (a new id) starts again through the speed server's runwait.
 
-Independently of the planner, the forward radar is checked every period: a target closer than
-the stopping distance (dynamics, with the brake estimate) plus a margin is an emergency stop
-(fault to the speed server through the driving module, authorization 0, ``Notice(kind="estop")``).
-The stop latches until a new command is accepted; see docs/move-server.md for the rules.
+Independently of the planner, the forward radar is checked every period through its corridor
+(``move_radar``: targets remembered in the world frame until passed, judged along the arcs of
+the commanded and the steered curvature, as wide as the vehicle plus a margin): a target whose
+path distance is shorter than the stopping distance (dynamics, with the brake estimate) plus a
+margin is an emergency stop (fault to the speed server through the driving module,
+authorization 0, ``Notice(kind="estop")``). The stop latches until a new command is accepted.
+A silent or frozen radar is fault 1151 / 1152 and caps the forward authorization at the range
+last seen clear. Reversing has no radar: a REVERSE is clamped to 1.5 m/s and to the vehicle's
+own forward track plus 1 m (the reply says so). See docs/move-server.md for the rules.
 
 Outputs every period: the four driving inputs above, ``MoveStatus``; ``MoveReply`` per
 command; ``ActuatorEstimates`` on ``move/estimates`` every ``estimates_period_s``; ``Notice``
@@ -589,7 +594,7 @@ class MoveServer:
         return True
 
     def _collision_check(self, now_s: float, out: list) -> bool:
-        """The VORAD failsafe: True on the period an emergency stop starts."""
+        """The VORAD failsafe on the radar corridor: True on the period an emergency stop starts."""
         cfg = self.config
         target_m = self.corridor.nearest_m     # path distance to a corridor target (move_radar)
         if self.phase == "estopped" or not math.isfinite(target_m):
