@@ -34,6 +34,7 @@ radar without an alive counter and without a target cannot be told from a clear 
 from __future__ import annotations
 
 import enum
+import itertools
 import math
 from collections import deque
 from collections.abc import Iterable
@@ -79,8 +80,9 @@ class RadarConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_on
                                         # than a rear parking aid's ~1.5 m zone would have seen)
     trail_spacing_m: float = 0.25       # rear-bumper track resolution
     trail_length_m: float = 60.0        # how much of the own track is kept (240 points)
-    trail_tolerance_m: float = 0.15     # the reverse path may deviate this much from the track:
-                                        # GPS noise (0.02 m x 3) + half a track step
+    trail_tolerance_m: float = 0.15     # the reverse path may deviate this much from the track
+                                        # (segments between its points): GPS noise 0.02 m x 3,
+                                        # path tracking at 1.5 m/s
 
 
 class Pose(msgspec.Struct, frozen=True):
@@ -121,6 +123,15 @@ def in_corridor(offset_m: float, outer_m: float, half_width_m: float, margin_m: 
     if abs(curvature_1pm) < STRAIGHT_1PM:
         return abs(offset_m) <= half_width_m + margin_m
     return -(half_width_m + margin_m) <= offset_m <= outer_m + margin_m
+
+
+def segment_distance_m(x_m: float, y_m: float, a: tuple[float, float],
+                       b: tuple[float, float]) -> float:
+    """Distance from a point to the segment a-b."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    n2 = dx * dx + dy * dy
+    t = 0.0 if n2 == 0.0 else min(1.0, max(0.0, ((x_m - a[0]) * dx + (y_m - a[1]) * dy) / n2))
+    return math.hypot(x_m - a[0] - t * dx, y_m - a[1] - t * dy)
 
 
 class RadarCorridor:
@@ -297,23 +308,27 @@ class RadarCorridor:
         left = self.clear_end_m - odometer_m - estop_margin_m - self.config.hold_gap_m
         return max(left, 0.0)
 
-    def rear_clear_m(self, gps: GpsIns | None, curvature_1pm: float) -> float:
+    def rear_clear_m(self, gps: GpsIns | None, curvature_1pm: float,
+                     up_to_m: float = math.inf) -> float:
         """How far the rear axle may back along the arc of ``curvature_1pm`` with the rear
-        bumper on the track the vehicle swept forward (within ``trail_tolerance_m``)."""
+        bumper on the track the vehicle swept forward (within ``trail_tolerance_m``); the search
+        stops at ``up_to_m``."""
         cfg = self.config
         if gps is None or not self.trail:
             return 0.0
         rear = self.params.rear_overhang_m
         step = cfg.trail_spacing_m
-        tol2 = (cfg.trail_tolerance_m + 0.5 * step) ** 2
         x, y, h = gps.x_m, gps.y_m, gps.heading_rad
         trail = (*self.trail, (x - rear * math.cos(h), y - rear * math.sin(h)))   # and where it is
+        segments = [(a, b) for a, b in itertools.pairwise(trail)
+                    if math.dist(a, b) <= 2.0 * step + cfg.trail_tolerance_m] or [(trail[0], trail[0])]
+        tol = cfg.trail_tolerance_m
         k = curvature_1pm
         travelled = 0.0
-        limit = cfg.trail_length_m
+        limit = min(cfg.trail_length_m, up_to_m)
         while travelled <= limit:
             bx, by = x - rear * math.cos(h), y - rear * math.sin(h)
-            if not any((bx - tx) ** 2 + (by - ty) ** 2 <= tol2 for tx, ty in trail):
+            if not any(segment_distance_m(bx, by, a, b) <= tol for a, b in segments):
                 return max(travelled - step, 0.0)
             # one step backwards along the arc (heading rate -v k, v < 0)
             dh = k * step
@@ -335,7 +350,7 @@ class RadarCorridor:
         if speed > cfg.reverse_max_speed_mps:
             speed = cfg.reverse_max_speed_mps
             notes.append(f"maxspeed clamped to {speed:.2f} m/s (no rear sensor)")
-        allowed = self.rear_clear_m(gps, cmd.curvature_1pm) + cfg.reverse_blind_m
+        allowed = self.rear_clear_m(gps, cmd.curvature_1pm, cmd.distance_m) + cfg.reverse_blind_m
         distance = cmd.distance_m
         if distance > allowed:
             distance = allowed
