@@ -271,3 +271,15 @@ def test_an_obstacle_in_the_start_up_blind_wedge_is_a_known_limit(preset: str) -
     assert seen.summary["violations"] == [] and estops(seen)
     blind = run(preset, [move(40.0, 3.0)], {"obstacles": [{"x_m": front + 0.5 * wedge_m, "y_m": edge}]})
     assert not estops(blind)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("at_s", [0.2, 5.0])
+def test_a_frozen_gps_does_not_hide_an_obstacle_from_the_radar(preset: str, at_s: float) -> None:
+    """Red team (issue 16 case 1 with an obstacle): the current reading is judged in the vehicle
+    frame (no pose) and its closing speed sets the reach when the GPS/INS speed is frozen low.
+    Only contact is this module's; the overrun belongs to the motion plausibility checks."""
+    result = run(preset, [move(30.0, 5.0),
+                          {"at_s": at_s, "sensor": {"name": "gps", "fault": "freeze", "for_s": 30}}],
+                 {"obstacles": [{"x_m": 60, "y_m": 0}]})
+    assert "contact" not in {d["rule"] for d in result.summary["violation_details"]}

@@ -607,7 +607,7 @@ class MoveServer:
         roll = self.gps.roll_rad if self.gps is not None else 0.0
         ell = self._brake_ell
         k = self.driving.curvature_1pm if self.driving is not None else self.curvature_1pm
-        speed = max(v, 0.0)
+        speed = max(v, self.corridor.closing_mps, 0.0)   # the radar's own closing speed too
         braking = self._braking(ell, k, grade, roll).stopping_distance_m(speed,
                                                                           cfg.estop_reaction_s)
         if not math.isfinite(braking):

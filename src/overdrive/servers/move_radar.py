@@ -154,6 +154,7 @@ class RadarCorridor:
         self.clear_end_m: float | None = None  # odometer up to which the path was seen clear
         self.fault: RadarFault | None = None
         self.nearest_m = math.inf
+        self.closing_mps = 0.0   # closing speed of this period's reading, if in the corridor
 
     # ------------------------------------------------------------------ inputs
 
@@ -210,6 +211,7 @@ class RadarCorridor:
         pose = Pose(gps.x_m, gps.y_m, gps.heading_rad) if gps is not None else None
         ks = tuple(curvatures_1pm)
         self.nearest_m = math.inf
+        self.closing_mps = 0.0
         if fault is None and fresh and msg is not None:
             if not (msg.target and self.same_since_odometer_m is not None):
                 # a changed reading (or a clear road): the path is seen clear up to its range
@@ -218,6 +220,8 @@ class RadarCorridor:
                 b = msg.bearing_rad or 0.0
                 self.nearest_m = self._corridor_distance(
                     self.front_m + msg.range_m * math.cos(b), msg.range_m * math.sin(b), ks)
+                if math.isfinite(self.nearest_m):
+                    self.closing_mps = msg.closing_speed_mps
             if pose is not None:
                 self._observe(pose, msg)
         if pose is not None:
