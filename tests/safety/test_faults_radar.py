@@ -283,3 +283,18 @@ def test_a_frozen_gps_does_not_hide_an_obstacle_from_the_radar(preset: str, at_s
                           {"at_s": at_s, "sensor": {"name": "gps", "fault": "freeze", "for_s": 30}}],
                  {"obstacles": [{"x_m": 60, "y_m": 0}]})
     assert "contact" not in {d["rule"] for d in result.summary["violation_details"]}
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("period_s", [0.2, 1.0])
+def test_a_stream_of_reverses_shares_one_blind_allowance(preset: str, period_s: float) -> None:
+    """Red team: a planner re-sending REVERSE every period would otherwise be granted the blind
+    metre again from each new position and creep back without limit."""
+    p = PRESETS[preset]
+    events = [{"at_s": 0.5 + i * period_s, "reverse": {"distance_m": 12.0, "maxspeed_mps": 2.0,
+                                                       "curvature_1pm": 0}}
+              for i in range(int(12.0 / period_s))]
+    result = run(preset, events, {"obstacles": [{"x_m": -p.rear_overhang_m - 2.0, "y_m": 0}]},
+                 duration_s=25)
+    assert result.summary["violations"] == []
+    assert float(result.trace[-1]["odometer_m"]) <= RadarConfig().reverse_blind_m + 0.05

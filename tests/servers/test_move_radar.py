@@ -260,3 +260,18 @@ def test_the_own_forward_track_is_verified_clear_for_a_reverse_that_retraces_it(
     assert other < 6.0, "a REVERSE off the track is verified only while it stays on it"
     c.record_trail(gps(x, y, h, v=-1.0, odo=odo + 1.0), -1)        # reversing records nothing
     assert c.rear_clear_m(here, k) == pytest.approx(20.0, abs=0.6)
+
+
+def test_a_new_reverse_continues_the_allowance_of_the_reverse_under_way() -> None:
+    """The blind metre is granted once per reverse, not again by every REVERSE of a stream;
+    forward travel of the blind allowance starts a new reverse."""
+    c = corridor()
+    first, _ = c.clamp_reverse(reverse(12.0), gps(odo=0.0))
+    assert first.distance_m == pytest.approx(CFG.reverse_blind_m)
+    c.record_trail(gps(x=-0.6, odo=0.6, v=-1.0), -1)
+    again, _ = c.clamp_reverse(reverse(12.0), gps(x=-0.6, odo=0.6))
+    assert again.distance_m == pytest.approx(CFG.reverse_blind_m - 0.6)
+    for i in range(1, 12):   # forward 1.1 m: a new reverse (over that track, plus the blind metre)
+        c.record_trail(gps(x=-0.6 + 0.1 * i, odo=0.6 + 0.1 * i, v=1.0), 1)
+    fresh, _ = c.clamp_reverse(reverse(12.0), gps(x=0.5, odo=1.7))
+    assert fresh.distance_m == pytest.approx(1.0 + CFG.reverse_blind_m, abs=0.3)

@@ -21,7 +21,8 @@ vehicle's width but off the centre line as soon as it leaves the cone (issue 16)
 - **reversing has no radar**: a REVERSE is clamped (``clamp_reverse``) to
   ``reverse_max_speed_mps`` and to the ground verified clear behind: the track the vehicle's
   rear bumper swept while driving forward (its own footprint covered it), followed back along
-  the REVERSE's arc, plus ``reverse_blind_m`` of unverified ground.
+  the REVERSE's arc, plus ``reverse_blind_m`` of unverified ground, once per reverse (a
+  stream of REVERSE commands shares it).
 
 Limits (docs/move-server.md, "Radar corridor and reverse limits"): the cone does not see the
 path of a tight curve (for curvature above ~tan(6 deg) / (2 x front overhang from the axle),
@@ -146,6 +147,11 @@ class RadarCorridor:
         self.trail: deque[tuple[float, float]] = deque(
             maxlen=max(2, int(cfg.trail_length_m / cfg.trail_spacing_m)))
         self.trail_odometer_m: float | None = None
+        self.last_odometer_m: float | None = None
+        # where the current reverse began (pose, odometer): a stream of REVERSE commands shares
+        # one allowance instead of being granted the blind metre again and again
+        self.reverse_anchor: GpsIns | None = None
+        self.forward_since_anchor_m = 0.0
         self.pending: Radar | None = None    # a reading received this period
         self.last: Radar | None = None       # the last reading received (fresh or not)
         self.fresh_s: float | None = None    # when the last fresh reading came
@@ -163,10 +169,16 @@ class RadarCorridor:
         self.pending = msg
 
     def record_trail(self, gps: GpsIns, direction: int) -> None:
-        """Keep the rear bumper's track while driving forward (it swept that ground)."""
+        """Keep the rear bumper's track while driving forward (it swept that ground); forward
+        travel of ``reverse_blind_m`` ends the current reverse (its anchor)."""
+        odo = gps.odometer_m
+        last, self.last_odometer_m = self.last_odometer_m, odo
         if direction <= 0:
             return
-        odo = gps.odometer_m
+        if self.reverse_anchor is not None and last is not None:
+            self.forward_since_anchor_m += max(odo - last, 0.0)
+            if self.forward_since_anchor_m >= self.config.reverse_blind_m:
+                self.reverse_anchor = None
         if self.trail_odometer_m is not None and odo - self.trail_odometer_m < \
                 self.config.trail_spacing_m and self.trail:
             return
@@ -354,13 +366,19 @@ class RadarCorridor:
         if speed > cfg.reverse_max_speed_mps:
             speed = cfg.reverse_max_speed_mps
             notes.append(f"maxspeed clamped to {speed:.2f} m/s (no rear sensor)")
-        allowed = self.rear_clear_m(gps, cmd.curvature_1pm, cmd.distance_m) + cfg.reverse_blind_m
+        anchor = self.reverse_anchor if self.reverse_anchor is not None else gps
+        if gps is not None and self.reverse_anchor is None:
+            self.reverse_anchor, self.forward_since_anchor_m = gps, 0.0
+        used = 0.0 if gps is None or anchor is None else max(gps.odometer_m - anchor.odometer_m, 0.0)
+        verified = self.rear_clear_m(anchor, cmd.curvature_1pm, cmd.distance_m + used)
+        allowed = max(verified + cfg.reverse_blind_m - used, 0.0)
         distance = cmd.distance_m
         if distance > allowed:
             distance = allowed
             notes.append(f"distance clamped to {allowed:.2f} m: the own forward track verified "
-                         f"{allowed - cfg.reverse_blind_m:.2f} m clear behind, plus "
-                         f"{cfg.reverse_blind_m:.2f} m blind (no rear sensor)")
+                         f"{verified:.2f} m clear behind where this reverse began, plus "
+                         f"{cfg.reverse_blind_m:.2f} m blind, {used:.2f} m already used "
+                         "(no rear sensor)")
         if not notes:
             return cmd, ""
         return msgspec.structs.replace(cmd, maxspeed_mps=speed, distance_m=distance), \
