@@ -284,6 +284,9 @@ class Radar(Message, frozen=True):
     target: bool
     range_m: float                 # from the front bumper; max range when no target
     closing_speed_mps: float = 0.0
+    bearing_rad: float | None = None  # of the target, counter-clockwise (left) from the heading;
+                                      # None: not reported (a VORAD EVT-300 reports azimuth)
+    seq: int | None = None         # alive counter, +1 per reading (None: the sensor has none)
 
 
 class Truth(Message, frozen=True):

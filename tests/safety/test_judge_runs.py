@@ -205,7 +205,6 @@ def test_hill_start_does_not_roll_back() -> None:
         {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 3, "curvature_1pm": 0}}]), "direction")
 
 
-@pytest.mark.xfail(strict=True, reason="issue 16: the radar forgets what leaves its cone")
 def test_offset_obstacle_is_not_hit() -> None:
     no_violation(run(world={"obstacles": [{"x_m": 40, "y_m": 0.6}]}, events=[
         {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 2, "curvature_1pm": 0}}]), "contact")
@@ -358,10 +357,8 @@ FAULTS = [
                  {}, id="move-duplicated"),
     pytest.param([{"at_s": 5, "drop": {"channel": "set_speed", "for_s": 1}}], {}, id="spss-lost-1s"),
     pytest.param([{"at_s": 5, "drop": {"channel": "pedals", "for_s": 1}}], {}, id="pedals-lost-1s"),
-    pytest.param([sensor("radar", "dropout", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-lost",
-                 marks=issue(16, "a silent radar gives no notice and no speed reduction")),
-    pytest.param([sensor("radar", "freeze", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-frozen",
-                 marks=issue(16, "a frozen radar is trusted")),
+    pytest.param([sensor("radar", "dropout", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-lost"),
+    pytest.param([sensor("radar", "freeze", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-frozen"),
     pytest.param([actuator(brake={"effectiveness": 0.2})], {}, id="brake-weak-20",
                  marks=issue(16, "weak brakes are learned only once braking hard")),
     pytest.param([actuator(at_s=5.0, throttle={"stuck": True})], {}, id="throttle-stuck-at-cruise",
@@ -374,7 +371,6 @@ def test_one_fault_during_a_60_m_move(faults: list[dict], world: dict) -> None:
     no_violation(run(duration_s=40, world=world, events=[MOVE_60, *faults]))
 
 
-@issue(16, "reversing has no radar and no enforced speed or distance limit")
 def test_reversing_towards_an_unreported_obstacle_does_not_hit_it() -> None:
     no_violation(run(duration_s=20, world={"obstacles": [{"x_m": -8, "y_m": 0}]}, events=[
         {"at_s": 0.5, "reverse": {"distance_m": 12, "maxspeed_mps": 2, "curvature_1pm": 0}}]), "contact")

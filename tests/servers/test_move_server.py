@@ -202,13 +202,15 @@ def test_stop_authorizes_nothing(preset) -> None:
 
 def test_reverse_after_standstill_shifts_and_voids_forward_authorization(preset) -> None:
     node = MoveServer(preset)
-    run(node, 0.0, 0.2, (cmd(d=10.0),), speed=0.0, odo=10.0)
-    out = node.step(0.2, [*sensors(preset, odo=10.0), (Topic.MOVE_COMMAND, cmd("reverse", d=5.0, v=1.0, cid=2))])
+    for i in range(21):   # 10 m driven forward: a track the REVERSE may back over (move_radar)
+        node.step(i * 0.01, [*sensors(preset, speed=1.0 if i < 20 else 0.0, odo=0.5 * i),
+                             *([(Topic.MOVE_COMMAND, cmd(d=10.0))] if i == 0 else [])])
+    out = node.step(0.21, [*sensors(preset, odo=10.0), (Topic.MOVE_COMMAND, cmd("reverse", d=5.0, v=1.0, cid=2))])
     assert last(out, Topic.MOVE_REPLY).accepted
     advances = all_of(out, Topic.ADVANCE)
-    assert AdvanceAuthorization(source="move", distance_m=0.0, reverse=False, issued_s=0.2) in advances
+    assert AdvanceAuthorization(source="move", distance_m=0.0, reverse=False, issued_s=0.21) in advances
     assert advances[-1] == AdvanceAuthorization(source="move", distance_m=5.0, reverse=True,
-                                                issued_s=0.2)
+                                                issued_s=0.21)
     assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="reverse")
     assert last(out, Topic.MOVE_STATUS).phase == "shifting"
     out = run(node, 0.21, 0.05, speed=-0.5, odo=10.5, gear=preset.reverse_gear)

@@ -27,10 +27,15 @@ command is discarded and the speed server is asked to pause (or to park, when th
 off: it is never restarted without a command that needs it). Nothing moves when the
 interruption ends; the next command (a new id) starts again through the speed server's runwait.
 
-Independently of the planner, the forward radar is checked every period: a target closer than
-the stopping distance (dynamics, with the brake estimate) plus a margin is an emergency stop
-(fault to the speed server through the driving module, authorization 0, ``Notice(kind="estop")``).
-The stop latches until a new command is accepted; see docs/move-server.md for the rules.
+Independently of the planner, the forward radar is checked every period through its corridor
+(``move_radar``: targets remembered in the world frame until passed, judged along the arcs of
+the commanded and the steered curvature, as wide as the vehicle plus a margin): a target whose
+path distance is shorter than the stopping distance (dynamics, with the brake estimate) plus a
+margin is an emergency stop (fault to the speed server through the driving module,
+authorization 0, ``Notice(kind="estop")``). The stop latches until a new command is accepted.
+A silent or frozen radar is fault 1151 / 1152 and caps the forward authorization at the range
+last seen clear. Reversing has no radar: a REVERSE is clamped to 1.5 m/s and to the vehicle's
+own forward track plus 1 m (the reply says so). See docs/move-server.md for the rules.
 
 Outputs every period: the four driving inputs above, ``MoveStatus``; ``MoveReply`` per
 command; ``ActuatorEstimates`` on ``move/estimates`` every ``estimates_period_s``; ``Notice``
@@ -77,6 +82,7 @@ from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveC
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
+from overdrive.servers.move_radar import RadarConfig, RadarCorridor
 from overdrive.validation import finite
 from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
@@ -159,6 +165,7 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     estimates_period_s: float = 0.1
     adaptive: AdaptiveConfig = AdaptiveConfig()
     conditions: ConditionConfig = ConditionConfig()
+    radar: RadarConfig = RadarConfig()   # corridor, radar health, reverse limits (move_radar)
 
 
 class ActiveCommand(msgspec.Struct, frozen=True):
@@ -186,6 +193,7 @@ class MoveServer:
         self.gears = GearTable(params)
         self.model = ActuatorModel(params, cfg.adaptive)
         self.monitor = ConditionMonitor(params, cfg.conditions)
+        self.corridor = RadarCorridor(params, cfg.radar)
         self.phase = "idle"
         self.active: ActiveCommand | None = None
         self.last_command_id = 0
@@ -302,8 +310,9 @@ class MoveServer:
             self._finite_sensor(False, "imu: not finite", out)
 
     def _radar(self, now_s: float, msg: Radar, out: list) -> None:
-        if finite(msg.range_m):
+        if finite(msg.range_m) and (msg.bearing_rad is None or finite(msg.bearing_rad)):
             self.radar = msg
+            self.corridor.receive(now_s, msg)
         else:
             self._finite_sensor(False, "radar: range not finite", out)
 
@@ -361,6 +370,9 @@ class MoveServer:
 
         if self.gps is not None:
             self.history.record(now_s, self.odometer_m)
+            self.corridor.record_trail(self.gps, 1 if self.speed_mps > cfg.standstill_mps else 0)
+        out.extend((Topic.NOTICE, n) for n in self.corridor.update(
+            now_s, self.gps, self._path_curvatures(), self.direction == "forward"))
         self._learn(dt_s)
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
@@ -371,6 +383,14 @@ class MoveServer:
         self._limits(now_s, out)
         self._outputs(now_s, out)
         return out
+
+    def _path_curvatures(self) -> tuple[float, ...]:
+        """The radar corridor's arcs: the commanded curvature and the one the steering has."""
+        status, p = self.status, self.params
+        if status is None:
+            return (self.curvature_1pm,)
+        measured = math.tan(status.steer_pct / 100.0 * p.max_steer_rad) / p.wheelbase_m
+        return (self.curvature_1pm, measured)
 
     def _learn(self, dt_s: float) -> None:
         status, gps, imu = self.status, self.gps, self.imu
@@ -388,7 +408,7 @@ class MoveServer:
 
     def _situation(self, now_s: float) -> Situation:
         cfg = self.config
-        status, ss, radar = self.status, self.speed_state, self.radar
+        status, ss = self.status, self.speed_state
         v = self.speed_mps
         moving = ""
         if abs(v) > cfg.standstill_mps * 2.0:
@@ -404,8 +424,8 @@ class MoveServer:
             shifting_to=self.direction if self.phase == "shifting" else "",
             estop_braking=self.phase == "estopped" and self.fault_active,
             latched_estop=self.latched,
-            radar_target=bool(radar is not None and radar.target),
-            radar_range_m=radar.range_m if radar is not None else math.inf,
+            radar_target=math.isfinite(self.corridor.nearest_m),
+            radar_range_m=self.corridor.nearest_m,
             ellipse=self._brake_ell, standstill_mps=cfg.standstill_mps,
             obstacle_margin_m=cfg.estop_margin_m)
 
@@ -448,9 +468,10 @@ class MoveServer:
                                                     accepted=False, code=verdict.code,
                                                     message=verdict.message)))
             return
+        cmd, clamped = self.corridor.clamp_reverse(cmd, self.gps)   # no rear sensor
         short = "" if kind == "stop" else self._short_of_a_stop(cmd, odometer0_m, out)
-        out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
-                                                accepted=True, message=short)))
+        out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind, accepted=True,
+                                                message="; ".join(m for m in (clamped, short) if m))))
         self.last_command_id = command_id
         if cmd.kind == "stop":
             self.active = None
@@ -573,10 +594,10 @@ class MoveServer:
         return True
 
     def _collision_check(self, now_s: float, out: list) -> bool:
-        """The VORAD failsafe: True on the period an emergency stop starts."""
+        """The VORAD failsafe on the radar corridor: True on the period an emergency stop starts."""
         cfg = self.config
-        radar = self.radar
-        if self.phase == "estopped" or radar is None or not radar.target:
+        target_m = self.corridor.nearest_m     # path distance to a corridor target (move_radar)
+        if self.phase == "estopped" or not math.isfinite(target_m):
             return False
         v = self.speed_mps
         forward_cmd = self.active is not None and self.active.direction == "forward"
@@ -586,19 +607,19 @@ class MoveServer:
         roll = self.gps.roll_rad if self.gps is not None else 0.0
         ell = self._brake_ell
         k = self.driving.curvature_1pm if self.driving is not None else self.curvature_1pm
-        speed = max(v, 0.0)
+        speed = max(v, self.corridor.closing_mps, 0.0)   # the radar's own closing speed too
         braking = self._braking(ell, k, grade, roll).stopping_distance_m(speed,
                                                                           cfg.estop_reaction_s)
         if not math.isfinite(braking):
             braking = self._braking(ell, 0.0, grade, roll).stopping_distance_m(
                 speed, cfg.estop_reaction_s)
         reach = braking + cfg.estop_margin_m
-        if radar.range_m >= reach:
+        if target_m >= reach:
             return False
         self.latched = True
         self.fault_active = True
         self.active = None
-        self.estop_reason = (f"radar: obstacle at {radar.range_m:.1f} m inside stopping "
+        self.estop_reason = (f"radar: obstacle at {target_m:.1f} m inside stopping "
                              f"distance {braking:.1f} m + margin {cfg.estop_margin_m:.1f} m")
         out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code="radar",
                                          reason=self.estop_reason)))
@@ -703,6 +724,9 @@ class MoveServer:
             out.append((Topic.DRIVE_MODE, mode))
         moving = self.phase in ("starting", "shifting", "moving") and self.active is not None
         authorized = self.remaining_m if moving else 0.0
+        if self.direction == "forward":   # an untrusted radar: only the range last seen clear
+            authorized = min(authorized, self.corridor.forward_cap_m(self.odometer_m,
+                                                                     cfg.estop_margin_m))
         out.append((Topic.ADVANCE, AdvanceAuthorization(
             source=SOURCE, distance_m=authorized, reverse=self.direction == "reverse",
             issued_s=now_s)))

@@ -296,12 +296,16 @@ class Plant:
 
     def radar(self) -> tuple[bool, float, float]:
         """(target, range from the front bumper, closing speed) of the nearest obstacle in the cone."""
+        return self.radar_target()[:3]
+
+    def radar_target(self) -> tuple[bool, float, float, float]:
+        """``radar`` and the target's bearing (counter-clockwise from the heading, 0 if none)."""
         p = self.params
         c, s = math.cos(self.heading_rad), math.sin(self.heading_rad)
         front = p.length_m - p.rear_overhang_m
         bx, by = self.x_m + front * c, self.y_m + front * s
         best = p.radar_range_m
-        found = False
+        found, bearing = False, 0.0
         for ox, oy in self.world.obstacles:
             dx, dy = ox - bx, oy - by
             along = dx * c + dy * s
@@ -312,8 +316,8 @@ class Plant:
                 continue
             dist = math.hypot(dx, dy)
             if dist < best:
-                best, found = dist, True
-        return found, best, (self.speed_mps if found else 0.0)
+                best, found, bearing = dist, True, math.atan2(lateral, along)
+        return found, best, (self.speed_mps if found else 0.0), (bearing if found else 0.0)
 
     def contact(self) -> bool:
         """True when an obstacle lies inside the vehicle's footprint."""

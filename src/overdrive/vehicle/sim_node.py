@@ -97,6 +97,7 @@ class VehicleSim:
         self.gate_interventions: dict[str, int] = {}
         self.command_watchdog = Watchdog(command_timeout_s) if command_timeout_s else None
         self.command_timeouts = 0
+        self.radar_seq = 0           # the radar's alive counter (a freeze repeats it)
         self.software_ready = True   # False: the XGV's control/ready-mode software pause (xgv.py)
         self.mode = safety_mode(self.devices)
 
@@ -230,7 +231,8 @@ class VehicleSim:
         p, plant, rng = self.params, self.plant, self.noise
         gauss = rng.gauss
         c, s = math.cos(plant.pitch_rad), math.sin(plant.pitch_rad)
-        target, range_m, closing = plant.radar()
+        target, range_m, closing, bearing = plant.radar_target()
+        self.radar_seq += 1
         road_wheel = plant.road_wheel_rad
         status = VehicleStatus(
             gear=plant.gear, shifting=plant.shift_target is not None, engine=plant.engine,
@@ -256,7 +258,8 @@ class VehicleSim:
                 accel_y_mps2=-plant.lat_accel_mps2 + gauss(0.0, p.accel_noise_mps2),
                 accel_z_mps2=G_MPS2 * c + gauss(0.0, p.accel_noise_mps2 + plant.world.roughness_mps2),
                 yaw_rate_rps=yaw_rate)),
-            (Topic.RADAR, Radar(target=target, range_m=range_m, closing_speed_mps=closing)),
+            (Topic.RADAR, Radar(target=target, range_m=range_m, closing_speed_mps=closing,
+                                bearing_rad=bearing, seq=self.radar_seq)),
             (Topic.TRUTH, Truth(
                 x_m=plant.x_m, y_m=plant.y_m, heading_rad=plant.heading_rad,
                 speed_mps=plant.speed_mps, accel_mps2=plant.accel_mps2,
