@@ -44,6 +44,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.speed_control import (
     LongitudinalController,
@@ -178,6 +179,10 @@ class SpeedServer:
         self.slip_since_s: float | None = None
         self.lug_since_s: float | None = None
         self.pedals = PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE)
+        # actuator monitoring (issue 16, safety.actuators): a throttle or brake that does not
+        # follow cuts the engine for good (engine_cut) under a latched emergency stop
+        self.actuator_monitor = PedalMonitor(params)
+        self.engine_cut = False
 
     # ------------------------------------------------------------------ node
 
@@ -192,6 +197,7 @@ class SpeedServer:
             self.first_step_s = now_s
         requests = self._read_inputs(now_s, inbox, out)
         self._update_measurements(now_s, dt_s)
+        self._monitor_actuators(now_s, dt_s, out)
 
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
@@ -358,8 +364,9 @@ class SpeedServer:
         self.last_rejection = None
         self._feed_watchdog(now_s, now_s if sent_s is None else sent_s)
         if self.latched:
-            if self.sensor_lost or not self.stopped:
+            if self.engine_cut or self.sensor_lost or not self.stopped:
                 return False   # not executed: the e-stop holds until the vehicle has stopped
+                               # (an actuator fault holds for good: the actuator needs a human)
             self.estop_reason = ""
         self._accept(spss)
         if self.fault and now_s - self.fault_since_s >= self.config.fault_hold_s - TIME_EPS_S:
@@ -455,6 +462,32 @@ class SpeedServer:
         self.sensor_lost = silent
         return edge
 
+    def _monitor_actuators(self, now_s: float, dt_s: float, out: list) -> None:
+        """Issue 16: last period's pedal commands against the reported positions and response
+        (``safety.actuators.PedalMonitor``). A throttle or brake that does not follow cuts the
+        engine and latches an emergency stop that no request clears; each onset is a fault."""
+        status = self.status
+        if status is None:
+            return
+        armed = (status.computer_speed and status.safety_mode == "drive-by-wire"
+                 and not self.sensor_lost and not status.shifting)
+        gear = self.gears.get(status.gear)
+        imu_fresh = self.imu is not None and self._fresh(self.last_imu_s, now_s)
+        findings = self.actuator_monitor.update(
+            dt_s, armed=armed, throttle_cmd_pct=self.pedals.throttle_pct,
+            brake_cmd_pct=self.pedals.brake_pct, throttle_pct=status.throttle_pct,
+            brake_pct=status.brake_pct, direction=gear.direction if gear is not None else 0,
+            speed_mps=self.speed_mps,
+            accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
+            pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
+            slipping=status.traction_control)
+        for finding in findings:
+            self._raise_fault(now_s, int(finding.code), finding.message, out)
+            if finding.code in CUTS_ENGINE and not self.engine_cut:
+                self.engine_cut = True
+                self.goal, self.target_mps = "parked", 0.0
+                self._estop(finding.message, out)
+
     # ------------------------------------------------------------------ state machine
 
     def _conditions(self, now_s: float, client_fault_edge: bool, watchdog_edge: bool) -> Conditions:
@@ -488,7 +521,7 @@ class SpeedServer:
         self.saw_cranking = False
         if event == "pause_timeout":
             self.goal, self.auto_parked = "parked", True
-        elif event == "stalled":
+        elif event == "stalled" and not self.engine_cut:
             self._raise_fault(now_s, FaultCode.ENGINE_STALLED,
                               fault_message(FaultCode.ENGINE_STALLED, state=old), out)
         elif event == "shift_failed":
@@ -523,7 +556,7 @@ class SpeedServer:
             self.gear_cmd = self.neutral_gear
         elif state == "shifting" and self.stopped:
             self.gear_cmd = self.goal_gear
-        engine_on = row.engine_on
+        engine_on = row.engine_on and not self.engine_cut
         if state == "starting" and self.status is not None:
             # seed 001: starting "Must be in neutral": crank only out of gear
             status_gear = self.gears.get(self.status.gear)
@@ -553,6 +586,13 @@ class SpeedServer:
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g,
                                       direction * math.sin(pitch), gear, self.stopped)
+        probe_pct = self.actuator_monitor.probe_brake_pct(
+            dt_s, loop_braking=result.brake_pct > 0.0,
+            keep_ok=target > 0.0 and not status.traction_control, direction=direction,
+            speed_mps=self.speed_mps, pitch_rad=pitch, throttle_pct=status.throttle_pct)
+        if probe_pct is not None:   # the brake probe (safety.actuators.BrakeProbe) owns the pedals
+            self.controller.reset(v_g, a_g, probe_pct)
+            return PedalCommand(throttle_pct=0.0, brake_pct=probe_pct, source=SOURCE), powertrain
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
 
