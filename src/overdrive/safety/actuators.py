@@ -93,6 +93,8 @@ class ActuatorMonitorConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=T
                                      # a comfortable 0.14 g, 1.5 x min_brake_pct of signal
     probe_max_s: float = 2.0         # probe braking at most this long: a weak brake is probed
                                      # until the move server's estimate (tau 0.3 s) has ~6 tau
+    probe_start_throttle_pct: float = 10.0  # start only once the loop eases off (cruise reached):
+                                     # the throttle closes in ~0.45 s instead of ~0.7 s
     probe_retry_s: float = 5.0       # after an aborted probe, wait this long (no limit cycle)
     probe_close_max_s: float = 1.0   # wait at most this long for the throttle to close first
     probe_min_speed_mps: float = 1.5  # probe only above this: a healthy probe takes ~0.6 m/s ...
@@ -299,14 +301,16 @@ class PedalMonitor:
         return found
 
     def probe_brake_pct(self, dt_s: float, *, loop_braking: bool, keep_ok: bool, direction: int,
-                        speed_mps: float, pitch_rad: float, throttle_pct: float) -> float | None:
+                        speed_mps: float, pitch_rad: float, throttle_pct: float,
+                        throttle_cmd_pct: float = 0.0) -> float | None:
         """The probe's brake % this period (None: the speed loop's pedals stand).
 
         ``keep_ok``: the speed loop drives towards a nonzero target without slipping.
         """
         v_along = direction * speed_mps
         keep = keep_ok and not self.cut and v_along >= self.config.min_speed_mps
-        start = not loop_braking and self.probe.suitable(v_along, direction * math.sin(pitch_rad))
+        start = not loop_braking and throttle_cmd_pct <= self.config.probe_start_throttle_pct \
+            and self.probe.suitable(v_along, direction * math.sin(pitch_rad))
         return self.probe.step(dt_s, start, keep, self.response, throttle_pct)
 
 

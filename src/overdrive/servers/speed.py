@@ -70,6 +70,9 @@ INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",
                 "runwait": "idle", "shifting": "idle"}
 """Goal assumed when the server starts in a state that cannot be requested."""
 TIME_EPS_S = 1e-9   # float slack when comparing simulated times built from integer ticks
+PROBE_SLOWING_MPS = 0.5
+"""The brake probe stops when the target falls this far below the speed: a slowdown is the
+loop's (its braking verifies the brake anyway); 10x the driving module's accel band."""
 CLOCK_SKEW_MAX_S = 0.001
 """An SPSS send stamp may lead ``now_s`` by this much (float rounding of one shared clock,
 docs/multiprocess.md); further ahead, its clock is not ours and it is timed from receipt."""
@@ -588,11 +591,13 @@ class SpeedServer:
                                       direction * math.sin(pitch), gear, self.stopped)
         probe_pct = self.actuator_monitor.probe_brake_pct(
             dt_s, loop_braking=result.brake_pct > 0.0,
-            keep_ok=target > 0.0 and not status.traction_control, direction=direction,
-            speed_mps=self.speed_mps, pitch_rad=pitch, throttle_pct=status.throttle_pct)
-        if probe_pct is not None:   # the brake probe (safety.actuators.BrakeProbe) owns the pedals
-            self.controller.reset(v_g, a_g, probe_pct)
-            return PedalCommand(throttle_pct=0.0, brake_pct=probe_pct, source=SOURCE), powertrain
+            keep_ok=target > 0.0 and target >= v_g - PROBE_SLOWING_MPS
+            and not status.traction_control, direction=direction, speed_mps=self.speed_mps,
+            pitch_rad=pitch, throttle_pct=status.throttle_pct, throttle_cmd_pct=result.throttle_pct)
+        if probe_pct is not None:   # the brake probe (safety.actuators.BrakeProbe): throttle shut,
+            return (PedalCommand(throttle_pct=0.0,   # never less brake than the loop asks
+                                 brake_pct=max(probe_pct, result.brake_pct), source=SOURCE),
+                    powertrain)
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
 
