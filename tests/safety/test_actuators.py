@@ -99,9 +99,17 @@ def test_brake_ratio_is_grade_compensated(name: str, grade: float, effectiveness
 @pytest.mark.parametrize(("ratio", "weak"), [(CFG.weak_ratio - 0.02, True), (CFG.weak_ratio + 0.02, False)])
 def test_brake_response_weak_threshold_after_verification(ratio: float, weak: bool) -> None:
     r = BrakeResponse(CFG)
-    onsets = [r.update(DT, ratio) for _ in range(round(2.0 / DT))]
+    onsets = [c for _ in range(round(2.0 / DT)) for c in r.update(DT, ratio)]
     assert r.verified and r.weak is weak
-    assert sum(onsets) == (1 if weak else 0)
+    assert onsets == ([ActuatorFault.BRAKE_WEAK] if weak else [])
+
+
+@pytest.mark.parametrize(("ratio", "failed"), [(CFG.failed_ratio - 0.01, True), (CFG.failed_ratio + 0.01, False)])
+def test_brake_response_failed_threshold(ratio: float, failed: bool) -> None:
+    r = BrakeResponse(CFG)
+    onsets = [c for _ in range(round(3.0 / DT)) for c in r.update(DT, ratio)]
+    assert (ActuatorFault.BRAKE_FAILED in onsets) is failed and r.failed is failed
+    assert onsets.count(ActuatorFault.BRAKE_FAILED) <= 1
 
 
 def test_brake_response_not_weak_before_verified() -> None:

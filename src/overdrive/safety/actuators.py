@@ -42,6 +42,7 @@ class ActuatorFault(enum.IntEnum):
     BRAKE_NOT_APPLYING = 1133      # reported brake stays below the command: stuck released
     BRAKE_WEAK = 1134              # deceleration per brake % well below the preset's
     STEERING_STUCK = 1135          # road wheels stay still while the command is away from them
+    BRAKE_FAILED = 1136            # full brake could not hold the vehicle on a rated grade
 
 
 FAULT_MESSAGES: dict[ActuatorFault, str] = {
@@ -53,6 +54,8 @@ FAULT_MESSAGES: dict[ActuatorFault, str] = {
                                       "{command_pct:.1f} %): engine cut, emergency stop",
     ActuatorFault.BRAKE_WEAK: "brake gives {ratio:.0%} of the expected deceleration: envelope "
                               "tightened",
+    ActuatorFault.BRAKE_FAILED: "brake gives {ratio:.0%} of the expected deceleration, too little "
+                                "to hold a 15 % grade: engine cut, emergency stop",
     ActuatorFault.STEERING_STUCK: "steering stuck at {actual_pct:.1f} % (commanded "
                                   "{command_pct:.1f} %), driving curvature {curvature_1pm:.3f} "
                                   "1/m: stopping",
@@ -60,7 +63,7 @@ FAULT_MESSAGES: dict[ActuatorFault, str] = {
 """Readable message per fault, formatted with the details of the onset."""
 
 CUTS_ENGINE = frozenset({ActuatorFault.THROTTLE_STUCK_OPEN, ActuatorFault.THROTTLE_STUCK_CLOSED,
-                         ActuatorFault.BRAKE_NOT_APPLYING})
+                         ActuatorFault.BRAKE_NOT_APPLYING, ActuatorFault.BRAKE_FAILED})
 """Faults after which the speed loop cannot be trusted: engine off and emergency stop."""
 
 
@@ -89,12 +92,16 @@ class ActuatorMonitorConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=T
     weak_ratio: float = 0.6          # below: BRAKE_WEAK (between the sweep's weakest healthy-
                                      # enough brake, 0.3, and the adaptive's degraded 0.9)
     recover_ratio: float = 0.7       # above again: the weak onset re-arms (hysteresis)
+    failed_ratio: float = 0.16       # below: BRAKE_FAILED. Full brake (9 m/s^2 presets) then gives
+                                     # < 1.44 m/s^2, less than gravity along a 15 % grade (1.46):
+                                     # the vehicle could not hold itself on the grades it drives
     probe_brake_pct: float = 15.0    # the probe's brake: 1.35 m/s^2 nominal (9 m/s^2 presets),
                                      # a comfortable 0.14 g, 1.5 x min_brake_pct of signal
     probe_max_s: float = 2.0         # probe braking at most this long: a weak brake is probed
                                      # until the move server's estimate (tau 0.3 s) has ~6 tau
-    probe_start_throttle_pct: float = 10.0  # start only once the loop eases off (cruise reached):
-                                     # the throttle closes in ~0.45 s instead of ~0.7 s
+    probe_start_throttle_pct: float = 100.0  # start only with the loop's throttle below this
+                                     # (100: at launch, as soon as fast enough; a weak brake
+                                     # must be known before a 40 m MOVE at 8 m/s must stop)
     probe_retry_s: float = 5.0       # after an aborted probe, wait this long (no limit cycle)
     probe_close_max_s: float = 1.0   # wait at most this long for the throttle to close first
     probe_min_speed_mps: float = 1.5  # probe only above this: a healthy probe takes ~0.6 m/s ...
@@ -159,32 +166,36 @@ def brake_ratio(params: VehicleParams, direction: int, speed_mps: float, accel_x
 class BrakeResponse:
     """Exponential average of ``brake_ratio`` over braking time, and the BRAKE_WEAK onset."""
 
-    __slots__ = ("config", "excited_s", "ratio", "weak")
+    __slots__ = ("config", "excited_s", "failed", "ratio", "weak")
 
     def __init__(self, config: ActuatorMonitorConfig) -> None:
         self.config = config
         self.ratio = 1.0
         self.excited_s = 0.0
         self.weak = False
+        self.failed = False   # latched: BRAKE_FAILED reported
 
     @property
     def verified(self) -> bool:
         return self.excited_s >= self.config.verify_s - 1e-9
 
-    def update(self, dt_s: float, ratio: float) -> bool:
-        """Feed one sample; True on the onset of a weak brake."""
+    def update(self, dt_s: float, ratio: float) -> list[ActuatorFault]:
+        """Feed one sample; the onsets it makes (BRAKE_WEAK, BRAKE_FAILED once)."""
         cfg = self.config
         lo, hi = cfg.sample_bounds
         r = min(max(ratio, lo), hi)
         self.ratio += (r - self.ratio) * (1.0 - math.exp(-dt_s / cfg.response_tau_s))
         self.excited_s += dt_s
+        onsets = []
         if self.weak:
             self.weak = self.ratio < cfg.recover_ratio
-            return False
-        if self.verified and self.ratio < cfg.weak_ratio:
+        elif self.verified and self.ratio < cfg.weak_ratio:
             self.weak = True
-            return True
-        return False
+            onsets.append(ActuatorFault.BRAKE_WEAK)
+        if self.verified and self.ratio < cfg.failed_ratio and not self.failed:
+            self.failed = True
+            onsets.append(ActuatorFault.BRAKE_FAILED)
+        return onsets
 
 
 class BrakeProbe:
@@ -236,7 +247,8 @@ class BrakeProbe:
                 self.phase, self._retry_s = "idle", cfg.probe_retry_s   # the stuck check speaks
                 return None
             return 0.0
-        if (response.verified and not response.weak) or self._phase_s >= cfg.probe_max_s:
+        if ((response.verified and not response.weak) or response.failed
+                or self._phase_s >= cfg.probe_max_s):
             self.phase = "done"
             return None
         return cfg.probe_brake_pct
@@ -260,7 +272,7 @@ class PedalMonitor:
         self.brake_released = FollowCheck(+1, cfg.pedal_gap_pct, cfg.still_pct, cfg.hold_s)
         self.response = BrakeResponse(cfg)
         self.probe = BrakeProbe(cfg)
-        self.reported: set[ActuatorFault] = set()
+        self.reported: set[str] = set()   # pedals whose stuck onset was reported
         self.cut = False   # latched: an actuator the speed loop relies on does not follow
 
     def update(self, dt_s: float, *, armed: bool, throttle_cmd_pct: float, brake_cmd_pct: float,
@@ -283,9 +295,10 @@ class PedalMonitor:
         )
         for check, command, actual, on, code in checks:
             was = check.stuck
-            if check.update(dt_s, command, actual, on) and not was and code not in self.reported:
+            pedal = code.name.split("_")[0]   # THROTTLE or BRAKE: one stuck onset per pedal
+            if check.update(dt_s, command, actual, on) and not was and pedal not in self.reported:
                 self.cut = True
-                self.reported.add(code)   # the engine stays cut: one onset per run
+                self.reported.add(pedal)   # the engine stays cut: one onset per run
                 found.append(Finding(code, fault_message(code, actual_pct=actual,
                                                          command_pct=command)))
         if (armed and accel_x_mps2 is not None and not slipping
@@ -294,10 +307,9 @@ class PedalMonitor:
                 and brake_pct * 0.01 * self.params.max_brake_decel_mps2 >= cfg.min_predicted_mps2):
             ratio = brake_ratio(self.params, direction, speed_mps, accel_x_mps2, pitch_rad,
                                 brake_pct)
-            if ratio is not None and self.response.update(dt_s, ratio):
-                found.append(Finding(ActuatorFault.BRAKE_WEAK,
-                                     fault_message(ActuatorFault.BRAKE_WEAK,
-                                                   ratio=self.response.ratio)))
+            for code in self.response.update(dt_s, ratio) if ratio is not None else ():
+                self.cut |= code in CUTS_ENGINE
+                found.append(Finding(code, fault_message(code, ratio=self.response.ratio)))
         return found
 
     def probe_brake_pct(self, dt_s: float, *, loop_braking: bool, keep_ok: bool, direction: int,
