@@ -622,8 +622,8 @@ class DrivingModule:
         d_req = abs(lateral_demand_mps2(v, self.requested_1pm, roll))
         d_cmd = abs(lateral_demand_mps2(v, self.curvature_1pm, roll))
         demand = max(d_req, d_cmd) if d_req <= lat_axis else d_cmd
-        if stuck_k is not None:   # the curve the stuck wheels drive, whatever is commanded
-            demand = abs(lateral_demand_mps2(v, stuck_k, roll))
+        if stuck_k is not None:   # the curve the stuck wheels drive, or the commanded one
+            demand = max(demand, abs(lateral_demand_mps2(v, stuck_k, roll)))
         overload = demand > lat_axis
         tyre = tyre_longitudinal_mps2(lon_axis, lat_axis, demand)
         limits = Longitudinal(accel_mps2=tyre - g_along, decel_mps2=tyre + g_along)
