@@ -19,7 +19,7 @@ from overdrive.safety.actuators import (
 from overdrive.vehicle.presets import G_MPS2, PRESETS
 from tests.conftest import PRESET_NAMES
 
-CFG = ActuatorMonitorConfig()
+CFG = ActuatorMonitorConfig(probe_enabled=True)
 DT = 0.01
 
 
@@ -117,6 +117,11 @@ def test_brake_response_not_weak_before_verified() -> None:
     for _ in range(round(CFG.verify_s / DT) - 2):
         assert not r.update(DT, 0.0)
     assert not r.verified
+
+
+def test_brake_probe_is_off_by_default() -> None:
+    probe, response = BrakeProbe(ActuatorMonitorConfig()), BrakeResponse(CFG)
+    assert probe.step(DT, True, True, response, 0.0) is None and probe.phase == "idle"
 
 
 def test_brake_probe_phases() -> None:

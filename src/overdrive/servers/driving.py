@@ -464,6 +464,7 @@ class DrivingModule:
         self.yaw_rate_rps: float | None = None
         self.steer_sent_pct: float | None = None
         self.steering_stuck = False     # latched: the vehicle stops and stays stopped
+        self.monitor_actuators = True   # False where the status reports efforts, not positions
         self._inputs[Topic.IMU] = self._imu
 
     # ------------------------------------------------------------------ inputs
@@ -706,7 +707,8 @@ class DrivingModule:
         (``safety.actuators.SteeringMonitor``). Stuck wheels latch a stop (one fault notice);
         returns the curvature the vehicle actually drives while stuck, else None."""
         status = self.steer_status
-        if status is None or self.steer_sent_pct is None or self.gps is None:
+        if (status is None or self.steer_sent_pct is None or self.gps is None
+                or not self.monitor_actuators):
             return None
         armed = status.computer_steering and status.safety_mode == "drive-by-wire"
         finding = self.steer_monitor.update(

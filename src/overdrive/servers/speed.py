@@ -73,9 +73,10 @@ TIME_EPS_S = 1e-9   # float slack when comparing simulated times built from inte
 PROBE_SLOWING_MPS = 0.5
 """The brake probe stops when the target falls this far below the speed: a slowdown is the
 loop's (its braking verifies the brake anyway); 10x the driving module's accel band."""
-PROBE_RAMP_FRACTIONS = (0.2, 0.8)
-"""The brake probe never starts between these shares of the target: the ramp's 20-80 % stretch
-whose acceleration the server guarantees (issue 3 acceptance, within 15 %)."""
+PROBE_TARGET_FRACTION = 0.2
+"""The brake probe starts only at launch, below this share of the target: before the ramp's
+20-80 % stretch whose acceleration the server guarantees (issue 3 acceptance, within 15 %), and
+never at cruise, where the speed must hold within 0.2 m/s (issue 4 acceptance)."""
 CLOCK_SKEW_MAX_S = 0.001
 """An SPSS send stamp may lead ``now_s`` by this much (float rounding of one shared clock,
 docs/multiprocess.md); further ahead, its clock is not ours and it is timed from receipt."""
@@ -189,6 +190,7 @@ class SpeedServer:
         # follow cuts the engine for good (engine_cut) under a latched emergency stop
         self.actuator_monitor = PedalMonitor(params)
         self.engine_cut = False
+        self.monitor_actuators = True   # False where the status reports efforts, not positions
 
     # ------------------------------------------------------------------ node
 
@@ -473,7 +475,7 @@ class SpeedServer:
         (``safety.actuators.PedalMonitor``). A throttle or brake that does not follow cuts the
         engine and latches an emergency stop that no request clears; each onset is a fault."""
         status = self.status
-        if status is None:
+        if status is None or not self.monitor_actuators:
             return
         armed = (status.computer_speed and status.safety_mode == "drive-by-wire"
                  and not self.sensor_lost and not status.shifting)
@@ -592,18 +594,29 @@ class SpeedServer:
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g,
                                       direction * math.sin(pitch), gear, self.stopped)
-        probe_pct = self.actuator_monitor.probe_brake_pct(
-            dt_s, loop_braking=result.brake_pct > 0.0 or (
-                PROBE_RAMP_FRACTIONS[0] * target < v_g < PROBE_RAMP_FRACTIONS[1] * target),
-            keep_ok=target > 0.0 and target >= v_g - PROBE_SLOWING_MPS
-            and not status.traction_control, direction=direction, speed_mps=self.speed_mps,
-            pitch_rad=pitch, throttle_pct=status.throttle_pct, throttle_cmd_pct=result.throttle_pct)
-        if probe_pct is not None:   # the brake probe (safety.actuators.BrakeProbe): throttle shut,
-            return (PedalCommand(throttle_pct=0.0,   # never less brake than the loop asks
-                                 brake_pct=max(probe_pct, result.brake_pct), source=SOURCE),
-                    powertrain)
+        probe = self._brake_probe(dt_s, result, target, v_g, direction, pitch, status)
+        if probe is not None:
+            return probe, powertrain
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
+
+    def _brake_probe(self, dt_s: float, loop: Any, target_mps: float, v_g: float,
+                     direction: int, pitch_rad: float, status: VehicleStatus) -> PedalCommand | None:
+        """Issue 16: the once-a-run brake probe (``safety.actuators.BrakeProbe``) overriding the
+        loop's pedals: throttle shut, never less brake than the loop asks; None: the loop's."""
+        if not self.monitor_actuators:
+            return None
+        probe_pct = self.actuator_monitor.probe_brake_pct(
+            dt_s, loop_braking=loop.brake_pct > 0.0 or v_g > PROBE_TARGET_FRACTION * target_mps,
+            keep_ok=(target_mps > 0.0 and target_mps >= v_g - PROBE_SLOWING_MPS
+                     and not status.traction_control),
+            direction=direction, speed_mps=self.speed_mps, pitch_rad=pitch_rad,
+            throttle_pct=status.throttle_pct, throttle_cmd_pct=loop.throttle_pct)
+        if probe_pct is None:
+            return None
+        self.controller.throttle_pid.reset(0.0)   # no wind-up while the probe holds the throttle
+        return PedalCommand(throttle_pct=0.0, brake_pct=max(probe_pct, loop.brake_pct),
+                            source=SOURCE)
 
     def _update_hint(self, now_s: float) -> None:
         """Seed 001 hints; each one is held ``hint_hold_s`` so the client sees no chatter."""
