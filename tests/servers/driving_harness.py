@@ -31,12 +31,13 @@ def outputs(out: list[tuple[str, Any]], topic: str) -> list[Any]:
 
 def sensors(params: VehicleParams, *, speed_mps: float = 0.0, odometer_m: float = 0.0,
             pitch_rad: float = 0.0, roll_rad: float = 0.0, state: str = "run",
-            gear: str | None = None, traction: bool = False) -> list[tuple[str, Any]]:
+            gear: str | None = None, traction: bool = False,
+            steer_pct: float = 0.0) -> list[tuple[str, Any]]:
     gear = gear or params.drive_gear
     return [
         (Topic.VEHICLE_STATUS, VehicleStatus(
             gear=gear, shifting=False, engine="running", engine_rpm=1000.0, start_failed=False,
-            traction_control=traction, steer_pct=0.0, throttle_pct=0.0, brake_pct=0.0,
+            traction_control=traction, steer_pct=steer_pct, throttle_pct=0.0, brake_pct=0.0,
             safety_mode="drive-by-wire")),
         (Topic.GPS_INS, GpsIns(x_m=odometer_m, y_m=0.0, heading_rad=0.0, speed_mps=speed_mps,
                                pitch_rad=pitch_rad, roll_rad=roll_rad, odometer_m=odometer_m)),
@@ -64,10 +65,12 @@ class IdealLoop:
         self.active: SetSpeed | None = None
         self.last_spss: SetSpeed | None = None
         self.curvature_1pm = 0.0
+        self.steer_pct = 0.0
 
     def step(self, extra: list[tuple[str, Any]] | None = None) -> list[tuple[str, Any]]:
         inbox = sensors(self.params, speed_mps=self.speed_mps, odometer_m=self.odometer_m,
-                        pitch_rad=self.pitch_rad, state=self.state, gear=self.gear)
+                        pitch_rad=self.pitch_rad, state=self.state, gear=self.gear,
+                        steer_pct=self.steer_pct)   # ideal wheels: where they were commanded
         inbox += extra or []
         out = self.node.step(self.t_s, inbox)
         for spss in outputs(out, Topic.SET_SPEED):
@@ -76,6 +79,7 @@ class IdealLoop:
             self.state, self.gear = spss.state, spss.gear   # the ideal server obeys at once
         for steer in outputs(out, Topic.STEER):
             assert isinstance(steer, SteerCommand)
+            self.steer_pct = steer.steer_pct
             angle = steer.steer_pct / 100.0 * self.params.max_steer_rad
             self.curvature_1pm = math.tan(angle) / self.params.wheelbase_m
         self._vehicle()

@@ -44,8 +44,10 @@ class AdaptiveConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw
 
     fast_tau_s: float = 0.3          # ~4 brake lags: follows a step within ~1 s of braking
     slow_tau_s: float = 2.0          # smooths noise; governs how slowly a recovery is believed
-    sample_bounds: tuple[float, float] = (0.1, 1.5)    # per-sample ratio clamp (outliers)
-    estimate_bounds: tuple[float, float] = (0.2, 1.0)  # used value: never above nominal
+    sample_bounds: tuple[float, float] = (0.05, 1.5)   # per-sample ratio clamp (outliers)
+    estimate_bounds: tuple[float, float] = (0.05, 1.0)  # used value: never above nominal; the
+                                     # floor below the weakest brake swept (0.1, issue 16): a
+                                     # floor above the truth would loosen the envelope
     agree_tol: float = 0.05          # fast and slow within 5 %: the estimate is settled
     min_excited_s: float = 0.5       # ... for at least this much excited time
     min_brake_pct: float = 10.0      # brake samples only above this (below: too little signal)

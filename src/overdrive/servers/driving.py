@@ -40,6 +40,7 @@ from overdrive.messages import (
     DriveMode,
     DrivingStatus,
     GpsIns,
+    Imu,
     MaxSpeed,
     Notice,
     SetSpeed,
@@ -49,6 +50,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
 )
+from overdrive.safety.actuators import SteeringMonitor
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.gear_hints import GearHints
 from overdrive.validation import finite
@@ -459,6 +461,14 @@ class DrivingModule:
         self._safe_speeds: dict[tuple[float, ...], float] = {}   # see _safe_speed_mps
         self._safe_plan: Ellipse | None = None                    # ... the ellipse they are for
         self._brakings: dict[tuple[float, ...], Braking] = {}     # see _braking
+        # actuator monitoring (issue 16, safety.actuators): stuck road wheels stop the vehicle
+        self.steer_monitor = SteeringMonitor(params)
+        self.steer_status: VehicleStatus | None = None
+        self.yaw_rate_rps: float | None = None
+        self.steer_sent_pct: float | None = None
+        self.steering_stuck = False     # latched: the vehicle stops and stays stopped
+        self.monitor_actuators = True   # False where the status reports efforts, not positions
+        self._inputs[Topic.IMU] = self._imu
 
     # ------------------------------------------------------------------ inputs
 
@@ -567,8 +577,15 @@ class DrivingModule:
                 self._slip(now_s)
 
     def _vehicle_status(self, now_s: float, msg: Any, out: list) -> None:
-        if isinstance(msg, VehicleStatus) and msg.traction_control is True:
-            self._slip(now_s)
+        if isinstance(msg, VehicleStatus):
+            if finite(msg.steer_pct):
+                self.steer_status = msg
+            if msg.traction_control is True:
+                self._slip(now_s)
+
+    def _imu(self, now_s: float, msg: Any, out: list) -> None:
+        if isinstance(msg, Imu) and finite(msg.yaw_rate_rps):
+            self.yaw_rate_rps = msg.yaw_rate_rps
 
     def _slip(self, now_s: float) -> None:
         self.traction.update(now_s, True)
@@ -603,11 +620,14 @@ class DrivingModule:
         ell, cap_ell, plan_ell = self._period_ellipses(self.traction.shrink(now_s))
         lon_axis, lat_axis = load_axes_mps2(ell, grade, roll)
         g_along = G_MPS2 * math.sin(grade)
+        stuck_k = self._monitor_steering(now_s, dt_s, out)
 
         # longitudinal allocation: the path's curve if it fits, else the curve we are in
         d_req = abs(lateral_demand_mps2(v, self.requested_1pm, roll))
         d_cmd = abs(lateral_demand_mps2(v, self.curvature_1pm, roll))
         demand = max(d_req, d_cmd) if d_req <= lat_axis else d_cmd
+        if stuck_k is not None:   # the curve the stuck wheels drive, or the commanded one
+            demand = max(demand, abs(lateral_demand_mps2(v, stuck_k, roll)))
         overload = demand > lat_axis
         tyre = tyre_longitudinal_mps2(lon_axis, lat_axis, demand)
         limits = Longitudinal(accel_mps2=tyre - g_along, decel_mps2=tyre + g_along)
@@ -630,6 +650,8 @@ class DrivingModule:
                                             plan_ell)
         request = self._client(now_s, v)
         goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
+        if stuck_k is not None:
+            goal = 0.0   # under the lateral limit of the actual curve: braking inside the ellipse
         # the normal path can brake with the whole longitudinal axis once it slows out of a curve
         normal_decel = max(limits.decel_mps2, lon_axis + g_along)
         urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
@@ -673,8 +695,8 @@ class DrivingModule:
         max_k = self._max_curvature_1pm
         self.curvature_1pm = min(max(k, -max_k), max_k)
 
-        out.append((Topic.STEER, SteerCommand(steer_pct=steer_pct_for(self.curvature_1pm, p),
-                                              source=SOURCE)))
+        self.steer_sent_pct = steer_pct_for(self.curvature_1pm, p)
+        out.append((Topic.STEER, SteerCommand(steer_pct=self.steer_sent_pct, source=SOURCE)))
         out.append((Topic.DRIVING_STATUS, DrivingStatus(
             goal_speed_mps=goal, authorized_m=remaining, speed_limit_mps=speed_limit,
             curvature_1pm=self.curvature_1pm, accel_limit_mps2=limits.accel_mps2,
@@ -682,6 +704,24 @@ class DrivingModule:
         return out
 
     # ------------------------------------------------------------------ helpers
+
+    def _monitor_steering(self, now_s: float, dt_s: float, out: list) -> float | None:
+        """Issue 16: last period's steering command against the road wheels' reported position
+        (``safety.actuators.SteeringMonitor``). Stuck wheels latch a stop (one fault notice);
+        returns the curvature the vehicle actually drives while stuck, else None."""
+        status = self.steer_status
+        if (status is None or self.steer_sent_pct is None or self.gps is None
+                or not self.monitor_actuators):
+            return None
+        armed = status.computer_steering and status.safety_mode == "drive-by-wire"
+        finding = self.steer_monitor.update(
+            dt_s, armed=armed, command_pct=self.steer_sent_pct, actual_pct=status.steer_pct,
+            speed_mps=self.gps.speed_mps, yaw_rate_rps=self.yaw_rate_rps)
+        if finding is not None and not self.steering_stuck:
+            self.steering_stuck = True
+            out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
+                                             code=str(int(finding.code)), reason=finding.message)))
+        return self.steer_monitor.actual_curvature_1pm if self.steering_stuck else None
 
     def _hard_brake(self, remaining_m: float, v: float, v_auth: float, grade_rad: float,
                     normal_decel_mps2: float, out: list) -> bool:
