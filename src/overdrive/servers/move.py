@@ -73,6 +73,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
@@ -191,6 +192,10 @@ class MoveServer:
         self.last_command_id = 0
         self.newest_command_id: int | None = None   # the newest well-formed command seen
         self.history = OdometerHistory()   # odometer by time: a command counts from its issue
+        # issue 16: motion sensing cross-checked; progress is signed along each direction and
+        # conservative (forward in ``history``, reverse here)
+        self.motion = MotionPlausibility(SOURCE)
+        self.history_reverse = OdometerHistory()
         self.direction = "forward"
         self.curvature_1pm = 0.0
         self.engaged = False            # a MOVE/REVERSE has been accepted: keep the engine up
@@ -227,11 +232,16 @@ class MoveServer:
 
     @property
     def speed_mps(self) -> float:
+        """The trusted speed (issue 16); the GPS/INS's when none is trusted (the speed server
+        stops the vehicle then)."""
+        trusted = self.motion.speed_mps
+        if trusted is not None:
+            return trusted
         return self.gps.speed_mps if self.gps is not None else 0.0
 
-    @property
-    def odometer_m(self) -> float:
-        return self.gps.odometer_m if self.gps is not None else 0.0
+    def progress_m(self, direction: str) -> float:
+        """Signed, conservative progress along ``direction`` (issue 16: never path length)."""
+        return self.motion.progress_m(-1 if direction == "reverse" else 1)
 
     def _stopped(self, now_s: float) -> bool:
         return (self.stopped_since_s is not None
@@ -292,12 +302,14 @@ class MoveServer:
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
         if finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
             self.gps, self.gps_s = msg, now_s
+            self.motion.gps(now_s, msg)
         else:
             self._finite_sensor(False, "gps_ins: not finite", out)
 
     def _imu(self, now_s: float, msg: Imu, out: list) -> None:
         if finite(msg.accel_x_mps2, msg.accel_z_mps2):
             self.imu = msg
+            self.motion.imu(now_s, msg)
         else:
             self._finite_sensor(False, "imu: not finite", out)
 
@@ -316,6 +328,7 @@ class MoveServer:
     def _wheel(self, now_s: float, msg: WheelSpeed, out: list) -> None:
         if finite(msg.speed_mps):
             self.wheel_mps = msg.speed_mps
+            self.motion.wheel(now_s, msg)
         else:
             self._finite_sensor(False, "wheel_speed: not finite", out)
 
@@ -350,6 +363,8 @@ class MoveServer:
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         cfg = self.config
+        out.extend((Topic.NOTICE, n) for n in self.motion.step(
+            now_s, -1 if self.direction == "reverse" else 1))
         if self.hold_state is None and self.status is not None:
             # before the first command, keep the vehicle as it was found (engine off: parked)
             self.hold_state = "run" if self.status.engine == "running" else "parked"
@@ -360,7 +375,8 @@ class MoveServer:
             self.stopped_since_s = None
 
         if self.gps is not None:
-            self.history.record(now_s, self.odometer_m)
+            self.history.record(now_s, self.progress_m("forward"))
+            self.history_reverse.record(now_s, self.progress_m("reverse"))
         self._learn(dt_s)
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
@@ -429,9 +445,10 @@ class MoveServer:
             self.newest_command_id = command_id
         if verdict is None and kind != "stop":
             verdict = self._too_steep_to_plan(cmd)
-        odometer0_m = self.odometer_m
+        odometer0_m = self.progress_m(direction_of(kind) if kind != "stop" else "forward")
         if verdict is None and kind != "stop" and cmd.issued_s is not None:
-            anchored, why = self.history.anchor(cmd.issued_s, now_s)
+            history = self.history_reverse if kind == "reverse" else self.history
+            anchored, why = history.anchor(cmd.issued_s, now_s)
             if anchored is None:
                 # the planner's newest intent cannot be placed: it may have shortened the
                 # distance, so the command in force is not kept either (fail-safe: stop)
@@ -505,7 +522,7 @@ class MoveServer:
         decel = max(min(p.max_brake_decel_mps2, cfg.friction * G_MPS2 * math.cos(grade))
                     + G_MPS2 * math.sin(grade), SHORTEST_DECEL_MPS2)
         shortest_m = v * (self.period_s + p.brake_lag_s) + v * v / (2.0 * decel)
-        left_m = cmd.distance_m - (self.odometer_m - odometer0_m)
+        left_m = cmd.distance_m - (self.progress_m(direction_of(cmd.kind)) - odometer0_m)
         if left_m >= shortest_m:
             return ""
         message = (f"vehicle not in the expected position: {left_m:.2f} m left at "
@@ -523,7 +540,7 @@ class MoveServer:
     def _remaining(self) -> float:
         if self.active is None:
             return 0.0
-        used = self.odometer_m - self.active.odometer0_m
+        used = self.progress_m(self.active.direction) - self.active.odometer0_m
         return max(0.0, self.active.command.distance_m - used)
 
     def _classify(self, now_s: float, out: list) -> str | None:
