@@ -239,6 +239,11 @@ class MoveServer:
             return trusted
         return self.gps.speed_mps if self.gps is not None else 0.0
 
+    @property
+    def odometer_m(self) -> float:
+        """The GPS/INS path length as received (progress is ``progress_m``, never this)."""
+        return self.gps.odometer_m if self.gps is not None else 0.0
+
     def progress_m(self, direction: str) -> float:
         """Signed, conservative progress along ``direction`` (issue 16: never path length)."""
         return self.motion.progress_m(-1 if direction == "reverse" else 1)
