@@ -61,8 +61,10 @@ class PlausibilityConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True
                                   # row never happen; 25 also covers a 20 ms report quantised in
                                   # a JAUS link (xgv_client) repeating a few times at constant speed
     moving_mps: float = 0.3       # "the vehicle moves": 15 sigma of the wheel/GPS speed noise
-    imu_dv_mps: float = 0.5       # speed change the IMU must integrate to over a freeze: 10x what
-                                  # an accelerometer bias of 0.05 m/s^2 makes of 1 s
+    imu_dv_mps: float = 0.2       # speed change the IMU must integrate to over a freeze: below
+                                  # the judge's 0.3 m/s speed tolerance (a source frozen at the
+                                  # limit is caught before the judge), and 4 s of a 0.05 m/s^2
+                                  # accelerometer bias (the presets' accel noise, 1 sigma)
     timeout_s: float = 0.2        # a source silent this long is not live (seed 001's 200 ms budget)
     recover_s: float = 1.0        # plausible this long: trusted again (100 periods)
     jump_m: float = 0.2           # odometer slack per reading: ~10 sigma of RTK position noise
