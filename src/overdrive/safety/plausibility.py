@@ -16,7 +16,9 @@ Checks:
 - **jumping**: an odometer that runs backwards, or advances more than the speed allows over the
   time since the previous reading (``jump_m`` of slack), is untrusted.
 
-An untrusted source is trusted again after ``recover_s`` of plausible readings.
+An untrusted source is trusted again after ``recover_s`` of plausible, varying readings (a
+frozen source stays untrusted while it repeats itself, even once the vehicle has stopped: with
+no trusted speed left the vehicle stays stopped).
 
 What it gives its server:
 
@@ -278,6 +280,11 @@ class MotionPlausibility:
                 track.trusted = False
                 return [Notice(kind="fault", source=self.source, code=str(int(code)),
                                reason=self.reasons.get(track.name, track.name) + ": untrusted")]
+            return []
+        if track.repeated_s(now_s) >= self.config.freeze_s - 1e-9:
+            # still repeating one reading: no evidence against it now (the vehicle stopped),
+            # none for it either. A frozen source stays untrusted until its readings vary.
+            track.plausible_since_s = math.inf
             return []
         if track.plausible_since_s == math.inf:
             track.plausible_since_s = now_s
