@@ -85,8 +85,8 @@ class PlausibilityConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True
 class _Track:
     """One source: its last reading, how long it has repeated, and whether it is trusted."""
 
-    __slots__ = ("last", "last_s", "same_since_s", "imu_at_same", "trusted", "plausible_since_s",
-                 "name", "code")
+    __slots__ = ("code", "imu_at_same", "last", "last_s", "name", "plausible_since_s",
+                 "same_since_s", "trusted")
 
     def __init__(self, name: str, code: PlausibilityFault) -> None:
         self.name, self.code = name, code
@@ -181,10 +181,10 @@ class MotionPlausibility:
 
     # ------------------------------------------------------------------ outputs
 
-    def trusted(self, name: str, now_s: float) -> bool:
-        track = {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track,
-                 "imu": self.imu_track}[name]
-        return track.trusted and track.live(now_s, self.config.timeout_s)
+    def trusted(self, name: str) -> bool:
+        """Whether ``name`` ("gps_ins", "wheel_speed", "imu") is trusted (liveness aside)."""
+        return {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track,
+                "imu": self.imu_track}[name].trusted
 
     def _now_speed(self, track: _Track) -> float | None:
         msg = track.last
@@ -194,9 +194,6 @@ class MotionPlausibility:
     def speed_mps(self) -> float | None:
         """Trusted speed as of the last ``step`` (None: no trusted, live speed)."""
         return self._speed
-
-    def imu_trusted(self) -> bool:
-        return self.imu_track.trusted
 
     def progress_m(self, direction: int) -> float:
         """Conservative signed progress along ``direction`` (+1/-1), as of the last ``step``."""

@@ -306,8 +306,8 @@ class SpeedServer:
         cfg = self.config
         last_speed = self.speed_mps
         # issue 16: an untrusted source counts as silent (none left: the sensor e-stop)
-        gps_fresh = self._fresh(self.last_gps_s, now_s) and self.motion.gps_track.trusted
-        wheel_fresh = self._fresh(self.last_wheel_s, now_s) and self.motion.wheel_track.trusted
+        gps_fresh = self._fresh(self.last_gps_s, now_s) and self.motion.trusted("gps_ins")
+        wheel_fresh = self._fresh(self.last_wheel_s, now_s) and self.motion.trusted("wheel_speed")
         if self.gps is not None and gps_fresh:
             self.speed_mps = self.gps.speed_mps
         elif self.wheel_mps is not None and wheel_fresh:
@@ -315,7 +315,7 @@ class SpeedServer:
         self.speed_live = gps_fresh or wheel_fresh
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         if (self.imu is not None and self._fresh(self.last_imu_s, now_s)
-                and self.motion.imu_track.trusted):
+                and self.motion.trusted("imu")):
             self.accel_mps2 = self.imu.accel_x_mps2 - G_MPS2 * math.sin(pitch)
         elif dt_s > 0.0:
             self.accel_mps2 = first_order_lag((self.speed_mps - last_speed) / dt_s,
