@@ -396,9 +396,11 @@ class MoveServer:
     def _learn(self, dt_s: float) -> None:
         status, gps, imu = self.status, self.gps, self.imu
         if status is not None:
-            if gps is not None and imu is not None and not status.shifting:
+            # issue 16: the actuator model learns only from trusted motion sensing
+            trusted = self.motion.speed_mps is not None and self.motion.trusted("imu")
+            if gps is not None and imu is not None and not status.shifting and trusted:
                 direction = self._vehicle_direction()
-                self.model.update_pedals(dt_s, direction, status.gear, gps.speed_mps,
+                self.model.update_pedals(dt_s, direction, status.gear, self.speed_mps,
                                          imu.accel_x_mps2, gps.pitch_rad, status.throttle_pct,
                                          status.brake_pct, status.traction_control)
             self.model.update_steering(dt_s, self.steer_cmd_pct, status.steer_pct)
