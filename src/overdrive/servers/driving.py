@@ -1,7 +1,8 @@
 """The driving module (seed 003): authorizations, speed limits and steering in; SPSS and steering out.
 
 Each 10 ms period it validates its inputs, uses up every authorization to advance by the
-distance travelled (GPS/INS odometer), computes the goal speed (the highest speed that can
+signed distance travelled (the larger of the trusted GPS/INS odometer and integrated wheel
+speed, ``safety.plausibility``), computes the goal speed (the highest speed that can
 still stop within the most restrictive authorization, under the acceleration ellipse, with a
 reaction allowance for the speed server's latency, capped by the lowest live speed limit, the
 gear and the lateral limit of the curve), rate-limits the curvature inside the ellipse, and

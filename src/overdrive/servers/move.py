@@ -15,7 +15,9 @@ never the speed server directly:
 - ``SteeringRequest``: the command's curvature.
 
 A new command replaces the current one at once; without one the vehicle stops at the end of
-the distance (the authorization runs out). Progress comes from the GPS/INS odometer. Command
+the distance (the authorization runs out). Progress is signed along the command's direction
+and conservative: the larger of the trusted GPS/INS odometer and integrated wheel speed
+(``safety.plausibility``, issue 16), so a rollback is not progress. Command
 ids must increase: a command not newer than one already seen (a reordered or repeated message)
 is rejected as ``stale``, so a STOP is never overtaken by an earlier MOVE. A command's distance
 counts from where the vehicle was when the planner issued it (``issued_s``; the travel since is
