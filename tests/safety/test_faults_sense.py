@@ -118,6 +118,8 @@ HEALTHY = [
     pytest.param({}, [move(40, 8), {"at_s": 3, "sensor": {"name": "imu", "fault": "noise",
                                                           "sigma": 1.0, "for_s": 5}}],
                  id="imu-noise"),
+    pytest.param({}, [move(40, 8), {"at_s": 3, "drop": {"channel": "gps", "for_s": 0.4}}],
+                 id="gps-channel-drop"),
     pytest.param({}, [move(10, 3), {"at_s": 12, "reverse": {"distance_m": 8, "maxspeed_mps": 2,
                                                             "curvature_1pm": 0}}], id="reverse"),
 ]

@@ -213,6 +213,21 @@ def test_wheel_spin_on_ice_is_not_a_fault_and_only_adds_progress(spin_mps: float
     assert bench.node.progress_m(1) >= odo - 0.01
 
 
+@pytest.mark.parametrize("gap_s", [0.1, 0.4, 2.0])
+def test_a_gps_dropout_while_moving_is_not_a_freeze(gap_s: float) -> None:
+    """Silence is not repetition (red team: the move sweep's 0.4 s GPS channel drop was called
+    frozen): after the gap the odometer catches up by speed x gap, which is no jump either."""
+    bench = Bench()
+    odo = 0.0
+    gap = range(100, 100 + round(gap_s / DT))
+    for k in range(300):
+        odo += 5.0 * DT
+        g = None if k in gap else gps(5.0 + bench.n(), odo, x=odo)
+        bench.step(g, WheelSpeed(speed_mps=5.0 + bench.n()), imu(bench.n(0.05)))
+    assert bench.codes() == []
+    assert bench.node.progress_m(1) == pytest.approx(odo, abs=0.05)
+
+
 def test_a_silent_source_is_not_live_and_gives_no_speed() -> None:
     bench = Bench()
     bench.step(gps(1.0), WheelSpeed(speed_mps=1.0))

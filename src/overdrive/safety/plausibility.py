@@ -109,7 +109,9 @@ class _Track:
         return self.last is not None and now_s - self.last_s < timeout_s - 1e-9
 
     def repeated_s(self, now_s: float) -> float:
-        return now_s - self.same_since_s if self.last is not None else 0.0
+        """How long one reading has been received again and again (silence is not repetition:
+        a source that stops publishing is the liveness timeout's business)."""
+        return self.last_s - self.same_since_s if self.last is not None else 0.0
 
 
 class MotionPlausibility:
