@@ -114,8 +114,6 @@ def test_fault_sweep_draws_faults_and_reports_per_fault_and_rule(fault_sweep) ->
         assert runs == sum(row["rules"].get(rule, 0) for row in by_fault.values())
 
 
-@pytest.mark.xfail(strict=True, reason="issue 16: a frozen sensor or a stuck throttle still "
-                                       "breaks the judge's speed rule in this sample")
 def test_fault_sweep_has_no_avoidable_violation(fault_sweep) -> None:
     """Only a run whose fault left no way to meet a rule may violate it, and only after the
     stack reacted (issue 16: brakes stuck released -> emergency stop, engine cut, fault)."""

@@ -191,7 +191,6 @@ def no_violation(result: Any, *rules: str) -> None:
         assert result.summary["violations"] == []
 
 
-@pytest.mark.xfail(strict=True, reason="issue 16: a frozen GPS/INS runs away")
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_frozen_gps_at_standstill_does_not_run_away(preset: str) -> None:
     no_violation(run(vehicle=preset, events=[

@@ -1,7 +1,8 @@
 """The driving module (seed 003): authorizations, speed limits and steering in; SPSS and steering out.
 
 Each 10 ms period it validates its inputs, uses up every authorization to advance by the
-distance travelled (GPS/INS odometer), computes the goal speed (the highest speed that can
+signed distance travelled (the larger of the trusted GPS/INS odometer and integrated wheel
+speed, ``safety.plausibility``), computes the goal speed (the highest speed that can
 still stop within the most restrictive authorization, under the acceleration ellipse, with a
 reaction allowance for the speed server's latency, capped by the lowest live speed limit, the
 gear and the lateral limit of the curve), rate-limits the curvature inside the ellipse, and
@@ -49,8 +50,10 @@ from overdrive.messages import (
     SteeringRequest,
     Topic,
     VehicleStatus,
+    WheelSpeed,
 )
 from overdrive.safety.actuators import SteeringMonitor
+from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.gear_hints import GearHints
 from overdrive.validation import finite
@@ -406,7 +409,8 @@ class DrivingModule:
     name = "driving"
     period_s = 0.01
     subscriptions = (Topic.STEERING, Topic.MAX_SPEED, Topic.ADVANCE, Topic.DRIVE_MODE,
-                     Topic.SPEED_STATE, Topic.GPS_INS, Topic.IMU, Topic.VEHICLE_STATUS)
+                     Topic.SPEED_STATE, Topic.GPS_INS, Topic.IMU, Topic.VEHICLE_STATUS,
+                     Topic.WHEEL_SPEED)
 
     def __init__(self, params: VehicleParams, *, config: DrivingConfig | None = None,
                  friction: float = 0.8) -> None:
@@ -441,6 +445,10 @@ class DrivingModule:
         self._cut: float | None = None   # distance left when the terminal stop was commanded
         self.hard_brake = False          # braking with everything until the vehicle stands
         self.history = OdometerHistory()  # odometer by time: authorizations count from their issue
+        # issue 16: motion sensing cross-checked; progress is signed and conservative, so each
+        # direction has its own odometer (forward in ``history``, reverse here)
+        self.motion = MotionPlausibility(SOURCE)
+        self.history_reverse = OdometerHistory()
         self._arrived: list[AdvanceAuthorization] = []   # this period's, applied after the sensors
         self._newest_issue: dict[tuple, float] = {}   # (kind, source[, reverse]) -> newest issued_s
         self._out_of_order: set[tuple] = set()        # keys with a refused message not yet followed
@@ -454,7 +462,8 @@ class DrivingModule:
         self._inputs = {Topic.STEERING: self._steering, Topic.MAX_SPEED: self._max_speed,
                         Topic.ADVANCE: self._advance, Topic.DRIVE_MODE: self._drive_mode,
                         Topic.GPS_INS: self._gps, Topic.SPEED_STATE: self._speed_state_input,
-                        Topic.VEHICLE_STATUS: self._vehicle_status}
+                        Topic.VEHICLE_STATUS: self._vehicle_status,
+                        Topic.WHEEL_SPEED: self._wheel, Topic.IMU: self._imu}
         # per-period values that only change with their inputs (see step)
         self._ellipses: tuple[Any, ...] = ()       # (friction, shrink, ell, cap_ell, plan_ell)
         self._lateral: tuple[Any, ...] = ()        # (cap_ell, k_req, k_cmd, grade, roll, v_lat)
@@ -544,14 +553,16 @@ class DrivingModule:
             key = ("advance", msg.source, msg.reverse)
             if not self._in_order(key, msg.issued_s, out):
                 continue
-            odometer0 = self.odometer_m
+            odometer0 = self._progress_m(msg.reverse)
             if msg.issued_s is not None:
-                anchored, why = self.history.anchor(msg.issued_s, now_s)
+                history = self.history_reverse if msg.reverse else self.history
+                anchored, why = history.anchor(msg.issued_s, now_s)
                 if anchored is None:
                     if msg.distance_m > 0.0:   # refusing a zero authorization changes nothing
                         self._reject("advance", f"advance from {msg.source!r}: {why}; holding",
                                      out)
-                    self.authorizations.update(msg.source, msg.reverse, 0.0, self.odometer_m)
+                    self.authorizations.update(msg.source, msg.reverse, 0.0,
+                                               self._progress_m(msg.reverse))
                     continue
                 odometer0 = anchored
             self._taken(key, msg.issued_s)
@@ -569,6 +580,19 @@ class DrivingModule:
         if self._sensor(validate_gps(msg), out):
             self.gps, self.gps_s = msg, now_s
             self.odometer_m = msg.odometer_m
+            self.motion.gps(now_s, msg)
+
+    def _wheel(self, now_s: float, msg: Any, out: list) -> None:
+        if isinstance(msg, WheelSpeed) and finite(msg.speed_mps):
+            self.motion.wheel(now_s, msg)
+
+    def _imu(self, now_s: float, msg: Any, out: list) -> None:
+        if isinstance(msg, Imu) and finite(msg.accel_x_mps2):
+            self.motion.imu(now_s, msg)
+
+    def _progress_m(self, reverse: bool) -> float:
+        """Signed, conservative progress along a direction (issue 16: never path length)."""
+        return self.motion.progress_m(-1 if reverse else 1)
 
     def _speed_state_input(self, now_s: float, msg: Any, out: list) -> None:
         if self._sensor(validate_speed_state(msg), out):
@@ -600,17 +624,22 @@ class DrivingModule:
             handler = inputs.get(topic)
             if handler is not None:
                 handler(now_s, msg, out)
+        out.extend((Topic.NOTICE, n) for n in self.motion.step(
+            now_s, -1 if self.mode.direction == "reverse" else 1))
         if self.gps is not None:
-            self.history.record(now_s, self.odometer_m)
+            self.history.record(now_s, self._progress_m(False))
+            self.history_reverse.record(now_s, self._progress_m(True))
         if self._arrived:
             self._apply_advances(now_s, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         p, cfg = self.params, self.config
 
-        fresh = self.gps is not None and now_s - self.gps_s <= cfg.sensor_timeout_s + TIME_EPS_S
+        trusted_mps = self.motion.speed_mps   # issue 16: never an untrusted speed
+        fresh = (self.gps is not None and now_s - self.gps_s <= cfg.sensor_timeout_s + TIME_EPS_S
+                 and trusted_mps is not None)
         if fresh:
-            v = abs(self.gps.speed_mps)
+            v = abs(trusted_mps)
         else:
             v = abs(self.speed_state.speed_mps) if self.speed_state is not None else 0.0
         reverse = self.mode.direction == "reverse"
@@ -633,7 +662,7 @@ class DrivingModule:
         limits = Longitudinal(accel_mps2=tyre - g_along, decel_mps2=tyre + g_along)
 
         source_limit = self.limits.lowest_mps(now_s)
-        remaining = self.authorizations.remaining_m(reverse, self.odometer_m)
+        remaining = self.authorizations.remaining_m(reverse, self._progress_m(reverse))
         self._plan_gear(now_s, v, source_limit, pitch, remaining)
         server = self.speed_state
         driving_gear = server.gear if server is not None and server.state == "run" \

@@ -15,7 +15,9 @@ never the speed server directly:
 - ``SteeringRequest``: the command's curvature.
 
 A new command replaces the current one at once; without one the vehicle stops at the end of
-the distance (the authorization runs out). Progress comes from the GPS/INS odometer. Command
+the distance (the authorization runs out). Progress is signed along the command's direction
+and conservative: the larger of the trusted GPS/INS odometer and integrated wheel speed
+(``safety.plausibility``, issue 16), so a rollback is not progress. Command
 ids must increase: a command not newer than one already seen (a reordered or repeated message)
 is rejected as ``stale``, so a STOP is never overtaken by an earlier MOVE. A command's distance
 counts from where the vehicle was when the planner issued it (``issued_s``; the travel since is
@@ -78,6 +80,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
@@ -199,6 +202,10 @@ class MoveServer:
         self.last_command_id = 0
         self.newest_command_id: int | None = None   # the newest well-formed command seen
         self.history = OdometerHistory()   # odometer by time: a command counts from its issue
+        # issue 16: motion sensing cross-checked; progress is signed along each direction and
+        # conservative (forward in ``history``, reverse here)
+        self.motion = MotionPlausibility(SOURCE)
+        self.history_reverse = OdometerHistory()
         self.direction = "forward"
         self.curvature_1pm = 0.0
         self.engaged = False            # a MOVE/REVERSE has been accepted: keep the engine up
@@ -235,11 +242,21 @@ class MoveServer:
 
     @property
     def speed_mps(self) -> float:
+        """The trusted speed (issue 16); the GPS/INS's when none is trusted (the speed server
+        stops the vehicle then)."""
+        trusted = self.motion.speed_mps
+        if trusted is not None:
+            return trusted
         return self.gps.speed_mps if self.gps is not None else 0.0
 
     @property
     def odometer_m(self) -> float:
+        """The GPS/INS path length as received (progress is ``progress_m``, never this)."""
         return self.gps.odometer_m if self.gps is not None else 0.0
+
+    def progress_m(self, direction: str) -> float:
+        """Signed, conservative progress along ``direction`` (issue 16: never path length)."""
+        return self.motion.progress_m(-1 if direction == "reverse" else 1)
 
     def _stopped(self, now_s: float) -> bool:
         return (self.stopped_since_s is not None
@@ -300,12 +317,14 @@ class MoveServer:
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
         if finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
             self.gps, self.gps_s = msg, now_s
+            self.motion.gps(now_s, msg)
         else:
             self._finite_sensor(False, "gps_ins: not finite", out)
 
     def _imu(self, now_s: float, msg: Imu, out: list) -> None:
         if finite(msg.accel_x_mps2, msg.accel_z_mps2):
             self.imu = msg
+            self.motion.imu(now_s, msg)
         else:
             self._finite_sensor(False, "imu: not finite", out)
 
@@ -325,6 +344,7 @@ class MoveServer:
     def _wheel(self, now_s: float, msg: WheelSpeed, out: list) -> None:
         if finite(msg.speed_mps):
             self.wheel_mps = msg.speed_mps
+            self.motion.wheel(now_s, msg)
         else:
             self._finite_sensor(False, "wheel_speed: not finite", out)
 
@@ -359,6 +379,8 @@ class MoveServer:
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         cfg = self.config
+        out.extend((Topic.NOTICE, n) for n in self.motion.step(
+            now_s, -1 if self.direction == "reverse" else 1))
         if self.hold_state is None and self.status is not None:
             # before the first command, keep the vehicle as it was found (engine off: parked)
             self.hold_state = "run" if self.status.engine == "running" else "parked"
@@ -369,7 +391,8 @@ class MoveServer:
             self.stopped_since_s = None
 
         if self.gps is not None:
-            self.history.record(now_s, self.odometer_m)
+            self.history.record(now_s, self.progress_m("forward"))
+            self.history_reverse.record(now_s, self.progress_m("reverse"))
             self.corridor.record_trail(self.gps, 1 if self.speed_mps > cfg.standstill_mps else 0)
         out.extend((Topic.NOTICE, n) for n in self.corridor.update(
             now_s, self.gps, self._path_curvatures(), self.direction == "forward"))
@@ -395,9 +418,11 @@ class MoveServer:
     def _learn(self, dt_s: float) -> None:
         status, gps, imu = self.status, self.gps, self.imu
         if status is not None:
-            if gps is not None and imu is not None and not status.shifting:
+            # issue 16: the actuator model learns only from trusted motion sensing
+            trusted = self.motion.speed_mps is not None and self.motion.trusted("imu")
+            if gps is not None and imu is not None and not status.shifting and trusted:
                 direction = self._vehicle_direction()
-                self.model.update_pedals(dt_s, direction, status.gear, gps.speed_mps,
+                self.model.update_pedals(dt_s, direction, status.gear, self.speed_mps,
                                          imu.accel_x_mps2, gps.pitch_rad, status.throttle_pct,
                                          status.brake_pct, status.traction_control)
             self.model.update_steering(dt_s, self.steer_cmd_pct, status.steer_pct)
@@ -449,9 +474,10 @@ class MoveServer:
             self.newest_command_id = command_id
         if verdict is None and kind != "stop":
             verdict = self._too_steep_to_plan(cmd)
-        odometer0_m = self.odometer_m
+        odometer0_m = self.progress_m(direction_of(kind) if kind != "stop" else "forward")
         if verdict is None and kind != "stop" and cmd.issued_s is not None:
-            anchored, why = self.history.anchor(cmd.issued_s, now_s)
+            history = self.history_reverse if kind == "reverse" else self.history
+            anchored, why = history.anchor(cmd.issued_s, now_s)
             if anchored is None:
                 # the planner's newest intent cannot be placed: it may have shortened the
                 # distance, so the command in force is not kept either (fail-safe: stop)
@@ -526,7 +552,7 @@ class MoveServer:
         decel = max(min(p.max_brake_decel_mps2, cfg.friction * G_MPS2 * math.cos(grade))
                     + G_MPS2 * math.sin(grade), SHORTEST_DECEL_MPS2)
         shortest_m = v * (self.period_s + p.brake_lag_s) + v * v / (2.0 * decel)
-        left_m = cmd.distance_m - (self.odometer_m - odometer0_m)
+        left_m = cmd.distance_m - (self.progress_m(direction_of(cmd.kind)) - odometer0_m)
         if left_m >= shortest_m:
             return ""
         message = (f"vehicle not in the expected position: {left_m:.2f} m left at "
@@ -544,7 +570,7 @@ class MoveServer:
     def _remaining(self) -> float:
         if self.active is None:
             return 0.0
-        used = self.odometer_m - self.active.odometer0_m
+        used = self.progress_m(self.active.direction) - self.active.odometer0_m
         return max(0.0, self.active.command.distance_m - used)
 
     def _classify(self, now_s: float, out: list) -> str | None:

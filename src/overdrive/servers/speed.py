@@ -45,6 +45,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
+from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.speed_control import (
     LongitudinalController,
@@ -165,6 +166,7 @@ class SpeedServer:
         self.last_imu_s: float | None = None
         self.speed_live = False
         self.sensor_lost = False
+        self.motion = MotionPlausibility(SOURCE)   # issue 16: never close on an untrusted speed
         # faults and e-stop
         self.client_fault = 0
         self.estop_reason = ""
@@ -195,6 +197,9 @@ class SpeedServer:
             self.last_sensor_s = now_s   # grace period: the sensors get one timeout to appear
             self.first_step_s = now_s
         requests = self._read_inputs(now_s, inbox, out)
+        gear = self.gears.get(self.gear_cmd)
+        out.extend((Topic.NOTICE, n) for n in self.motion.step(
+            now_s, gear.direction if gear is not None else 0))
         self._update_measurements(now_s, dt_s)
         self._monitor_actuators(now_s, dt_s, out)
 
@@ -270,14 +275,17 @@ class SpeedServer:
         if self._accept_input(finite(msg.speed_mps, msg.pitch_rad),
                               "gps_ins: speed or pitch not finite", out):
             self.gps, self.last_gps_s = msg, now_s
+            self.motion.gps(now_s, msg)
 
     def _wheel_input(self, now_s: float, msg: WheelSpeed, out: list) -> None:
         if self._accept_input(finite(msg.speed_mps), "wheel_speed: not finite", out):
             self.wheel_mps, self.last_wheel_s = msg.speed_mps, now_s
+            self.motion.wheel(now_s, msg)
 
     def _imu_input(self, now_s: float, msg: Imu, out: list) -> None:
         if self._accept_input(finite(msg.accel_x_mps2), "imu: accel_x not finite", out):
             self.imu, self.last_imu_s = msg, now_s
+            self.motion.imu(now_s, msg)
 
     def _ignore_input(self, now_s: float, msg: Any, out: list) -> None:
         pass
@@ -302,15 +310,17 @@ class SpeedServer:
         the IMU with gravity along the pitch removed, else from the speed's derivative."""
         cfg = self.config
         last_speed = self.speed_mps
-        gps_fresh = self._fresh(self.last_gps_s, now_s)
-        wheel_fresh = self._fresh(self.last_wheel_s, now_s)
+        # issue 16: an untrusted source counts as silent (none left: the sensor e-stop)
+        gps_fresh = self._fresh(self.last_gps_s, now_s) and self.motion.trusted("gps_ins")
+        wheel_fresh = self._fresh(self.last_wheel_s, now_s) and self.motion.trusted("wheel_speed")
         if self.gps is not None and gps_fresh:
             self.speed_mps = self.gps.speed_mps
         elif self.wheel_mps is not None and wheel_fresh:
             self.speed_mps = self.wheel_mps
         self.speed_live = gps_fresh or wheel_fresh
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
-        if self.imu is not None and self._fresh(self.last_imu_s, now_s):
+        if (self.imu is not None and self._fresh(self.last_imu_s, now_s)
+                and self.motion.trusted("imu")):
             self.accel_mps2 = self.imu.accel_x_mps2 - G_MPS2 * math.sin(pitch)
         elif dt_s > 0.0:
             self.accel_mps2 = first_order_lag((self.speed_mps - last_speed) / dt_s,

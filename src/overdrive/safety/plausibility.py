@@ -1,0 +1,336 @@
+"""Plausibility of motion sensing (issue 16, case 1): GPS/INS, wheel speed and IMU cross-checked.
+
+A pure, clock-free checker that each server owns (move, driving and speed each run in their own
+process in multi-process mode). The server hands it every GPS/INS, wheel-speed and IMU message
+it receives (``gps``, ``wheel``, ``imu``), then calls ``step`` once per period; ``step`` returns
+a fault ``Notice`` on the period a source becomes untrusted (once per onset).
+
+Checks:
+
+- **frozen**: a real sensor has noise, so the same reading received again and again for
+  ``freeze_s`` while another, live and changing, source says the vehicle moves (a speed of at
+  least ``moving_mps``, or an IMU that integrates to ``imu_dv_mps`` of speed change since the
+  repeats began) is a frozen source. A frozen IMU is one that repeats while a trusted speed
+  changes by ``imu_dv_mps`` more than the repeated acceleration explains. When every source
+  repeats (a noise-free bench at constant speed) nothing is called frozen: no source disagrees.
+- **jumping**: an odometer that runs backwards, or advances more than the speed allows over the
+  time since the previous reading (``jump_m`` of slack), is untrusted.
+
+An untrusted source is trusted again after ``recover_s`` of plausible, varying readings (a
+frozen source stays untrusted while it repeats itself, even once the vehicle has stopped: with
+no trusted speed left the vehicle stays stopped).
+
+What it gives its server:
+
+- ``speed_mps``: the GPS/INS speed when trusted and live, else the wheel speed when trusted and
+  live, else None (no trusted speed: the speed server stops under its own emergency braking).
+- ``progress_m(direction)``: a conservative odometer of SIGNED progress along ``direction``
+  (+1 forward, -1 reverse): over each ``block_s`` it adds the largest progress any trusted
+  source reports (GPS/INS path length signed by its speed, and the integrated wheel speed), so
+  authorization is never used up by less than a trusted source says was travelled, and motion
+  against the direction gives distance back instead of using it up (a rollback is not progress).
+
+Wheel slip (ice) makes the wheel odometer run ahead of the ground: that only makes the
+progress larger (the vehicle stops short), it is never called a sensor fault.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+
+import msgspec
+
+from overdrive.messages import GpsIns, Imu, Notice, WheelSpeed
+from overdrive.vehicle.presets import G_MPS2
+
+
+class PlausibilityFault(enum.IntEnum):
+    """Fault codes of the motion-sensing checks (issue 16's range 1101-1119)."""
+
+    GPS_FROZEN = 1101             # GPS/INS repeats one reading while the vehicle moves
+    WHEEL_SPEED_FROZEN = 1102     # wheel speed repeats one reading while the vehicle moves
+    IMU_FROZEN = 1103             # IMU repeats one reading while the speed changes
+    GPS_ODOMETER_JUMP = 1104      # GPS/INS odometer backwards, or ahead of what the speed allows
+    NO_TRUSTED_SPEED = 1110       # no trusted, live speed source is left
+
+
+class PlausibilityConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """Bounds of the checks; each with where its number comes from."""
+
+    freeze_s: float = 0.25        # 25 periods of one identical reading: with the presets' noise
+                                  # (0.02 m, 0.02 m/s, 0.05 m/s^2, 1 sigma) two equal floats in a
+                                  # row never happen; 25 also covers a 20 ms report quantised in
+                                  # a JAUS link (xgv_client) repeating a few times at constant speed
+    moving_mps: float = 0.3       # "the vehicle moves": 15 sigma of the wheel/GPS speed noise
+    imu_dv_mps: float = 0.2       # speed change the IMU must integrate to over a freeze: below
+                                  # the judge's 0.3 m/s speed tolerance (a source frozen at the
+                                  # limit is caught before the judge), and 4 s of a 0.05 m/s^2
+                                  # accelerometer bias (the presets' accel noise, 1 sigma)
+    timeout_s: float = 0.2        # a source silent this long is not live (seed 001's 200 ms budget)
+    recover_s: float = 1.0        # plausible this long: trusted again (100 periods)
+    jump_m: float = 0.2           # odometer slack per reading: ~10 sigma of RTK position noise
+    max_accel_mps2: float = 12.0  # above any tyre's grip (1.2 g): bounds speed between readings
+    block_s: float = 1.0          # progress blocks: the largest source's progress is taken per
+                                  # block. Per period, the wheel speed's noise (0.02 m/s, 1 sigma)
+                                  # would add its maximum every 10 ms (~1 cm/s of phantom
+                                  # progress); per 1 s block ~0.8 mm/s (measured: 6 mm over a
+                                  # 30 m authorization)
+    wheel_noise_m: float = 0.005  # integrated wheel-speed noise over a block: 2.5 sigma of
+                                  # 0.02 m/s x sqrt(100 periods) x 10 ms = 2 mm
+    sign_mps: float = 0.05        # below this the GPS speed's sign is noise (2.5 sigma): the
+                                  # engaged direction signs the odometer instead
+
+
+class _Track:
+    """One source: its last reading, how long it has repeated, and whether it is trusted."""
+
+    __slots__ = ("code", "imu_at_same", "last", "last_s", "name", "plausible_since_s",
+                 "same_since_s", "trusted")
+
+    def __init__(self, name: str, code: PlausibilityFault) -> None:
+        self.name, self.code = name, code
+        self.last: object | None = None
+        self.last_s = -math.inf
+        self.same_since_s = -math.inf     # first receipt of the reading now repeating
+        self.imu_at_same = 0.0            # integrated IMU speed at ``same_since_s``
+        self.trusted = True
+        self.plausible_since_s = -math.inf
+
+    def receive(self, now_s: float, msg: object, imu_integral_mps: float) -> bool:
+        """Record ``msg``; True when it differs from the previous reading."""
+        changed = msg != self.last
+        if changed:
+            self.same_since_s, self.imu_at_same = now_s, imu_integral_mps
+        self.last, self.last_s = msg, now_s
+        return changed
+
+    def live(self, now_s: float, timeout_s: float) -> bool:
+        return self.last is not None and now_s - self.last_s < timeout_s - 1e-9
+
+    def repeated_s(self, now_s: float) -> float:
+        """How long one reading has been received again and again (silence is not repetition:
+        a source that stops publishing is the liveness timeout's business)."""
+        return self.last_s - self.same_since_s if self.last is not None else 0.0
+
+
+class MotionPlausibility:
+    """Cross-checks of GPS/INS, wheel speed and IMU for one server (see the module docstring)."""
+
+    def __init__(self, source: str, config: PlausibilityConfig | None = None) -> None:
+        self.source = source
+        self.config = config or PlausibilityConfig()
+        self.gps_track = _Track("gps_ins", PlausibilityFault.GPS_FROZEN)
+        self.wheel_track = _Track("wheel_speed", PlausibilityFault.WHEEL_SPEED_FROZEN)
+        self.imu_track = _Track("imu", PlausibilityFault.IMU_FROZEN)
+        self.direction = 1                # engaged direction: signs a near-zero GPS speed
+        self.imu_integral_mps = 0.0       # integral of the IMU's longitudinal acceleration
+        self.speed_at_imu_same = 0.0      # trusted speed when the IMU's reading last changed
+        self.gps_odo_signed_m = 0.0       # GPS/INS path length, signed by its speed
+        self.wheel_odo_m = 0.0            # integrated wheel speed (signed)
+        self.jump_until_s = -math.inf     # GPS odometer jumped: untrusted until then at least
+        self.no_speed = False
+        self.reasons: dict[str, str] = {}   # source name -> why untrusted
+        # progress blocks: committed progress per direction and each source's value at the start
+        self._block_start_s: float | None = None
+        self._committed = {1: 0.0, -1: 0.0}
+        self._base: dict[str, float | None] = {"gps_ins": None, "wheel_speed": None}
+        self._speed: float | None = None
+        self._progress = {1: 0.0, -1: 0.0}
+
+    # ------------------------------------------------------------------ inputs
+
+    def gps(self, now_s: float, msg: GpsIns) -> None:
+        cfg = self.config
+        prev = self.gps_track.last
+        prev_s = self.gps_track.last_s
+        self.gps_track.receive(now_s, msg, self.imu_integral_mps)
+        if not isinstance(prev, GpsIns):
+            return
+        d_odo = msg.odometer_m - prev.odometer_m
+        dt = max(now_s - prev_s, 0.0)
+        v_max = max(abs(msg.speed_mps), abs(prev.speed_mps)) + cfg.max_accel_mps2 * dt
+        if d_odo < -cfg.jump_m or d_odo > v_max * dt + cfg.jump_m:
+            self.jump_until_s = now_s + cfg.recover_s
+            self.reasons["gps_ins"] = (f"gps_ins odometer changed by {d_odo:.2f} m in {dt:.3f} s "
+                                       f"at {abs(msg.speed_mps):.2f} m/s")
+        sign = (1 if msg.speed_mps > 0 else -1) if abs(msg.speed_mps) >= cfg.sign_mps \
+            else self.direction
+        self.gps_odo_signed_m += sign * max(d_odo, 0.0)
+
+    def wheel(self, now_s: float, msg: WheelSpeed) -> None:
+        prev = self.wheel_track.last
+        prev_s = self.wheel_track.last_s
+        self.wheel_track.receive(now_s, msg, self.imu_integral_mps)
+        if isinstance(prev, WheelSpeed):
+            dt = max(now_s - prev_s, 0.0)
+            self.wheel_odo_m += 0.5 * (prev.speed_mps + msg.speed_mps) * dt
+
+    def imu(self, now_s: float, msg: Imu) -> None:
+        track = self.imu_track
+        prev, prev_s = track.last, track.last_s
+        if isinstance(prev, Imu):
+            pitch = self._pitch_rad()
+            self.imu_integral_mps += (prev.accel_x_mps2 - G_MPS2 * math.sin(pitch)) \
+                * max(now_s - prev_s, 0.0)
+        if track.receive(now_s, msg, self.imu_integral_mps):
+            v = self.speed_mps
+            self.speed_at_imu_same = v if v is not None else 0.0
+
+    def _pitch_rad(self) -> float:
+        gps = self.gps_track.last
+        return gps.pitch_rad if isinstance(gps, GpsIns) else 0.0
+
+    # ------------------------------------------------------------------ outputs
+
+    def trusted(self, name: str) -> bool:
+        """Whether ``name`` ("gps_ins", "wheel_speed", "imu") is trusted (liveness aside)."""
+        return {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track,
+                "imu": self.imu_track}[name].trusted
+
+    def _now_speed(self, track: _Track) -> float | None:
+        msg = track.last
+        return msg.speed_mps if isinstance(msg, (GpsIns, WheelSpeed)) else None
+
+    @property
+    def speed_mps(self) -> float | None:
+        """Trusted speed as of the last ``step`` (None: no trusted, live speed)."""
+        return self._speed
+
+    def progress_m(self, direction: int) -> float:
+        """Conservative signed progress along ``direction`` (+1/-1), as of the last ``step``."""
+        return self._progress[1 if direction >= 0 else -1]
+
+    # ------------------------------------------------------------------ per period
+
+    def step(self, now_s: float, direction: int = 0) -> list[Notice]:
+        """Evaluate the checks for this period; fault notices on the period of each onset."""
+        cfg = self.config
+        if direction:
+            self.direction = 1 if direction > 0 else -1
+        notices: list[Notice] = []
+        gps, wheel, imu = self.gps_track, self.wheel_track, self.imu_track
+        moving = {t.name: self._moving_evidence(t, now_s) for t in (gps, wheel)}
+        for track in (gps, wheel):
+            frozen = track.repeated_s(now_s) >= cfg.freeze_s - 1e-9 and moving[track.name]
+            bad = frozen or (track is gps and now_s < self.jump_until_s)
+            if frozen:
+                self.reasons[track.name] = (f"{track.name} repeats one reading for "
+                                            f"{track.repeated_s(now_s):.2f} s while "
+                                            f"{moving[track.name]}")
+            notices += self._judge(track, bad, now_s,
+                                   PlausibilityFault.GPS_ODOMETER_JUMP
+                                   if track is gps and not frozen else track.code)
+        notices += self._judge(imu, self._imu_frozen(now_s), now_s, imu.code)
+        self._speed = self._select_speed(now_s)
+        live_any = gps.live(now_s, cfg.timeout_s) or wheel.live(now_s, cfg.timeout_s)
+        no_speed = self._speed is None and live_any
+        if no_speed and not self.no_speed:
+            notices.append(Notice(kind="fault", source=self.source,
+                                  code=str(int(PlausibilityFault.NO_TRUSTED_SPEED)),
+                                  reason="no trusted speed: " + "; ".join(self.reasons.values())))
+        self.no_speed = no_speed
+        self._update_progress(now_s)
+        return notices
+
+    def _moving_evidence(self, track: _Track, now_s: float) -> str:
+        """Why another source says the vehicle moves while ``track`` repeats, or ""."""
+        cfg = self.config
+        for other in (self.gps_track, self.wheel_track):
+            if other is track or not other.trusted or not other.live(now_s, cfg.timeout_s):
+                continue
+            v = self._now_speed(other)
+            if (v is not None and abs(v) >= cfg.moving_mps
+                    and other.repeated_s(now_s) < cfg.freeze_s - 1e-9):
+                return f"{other.name} reads {v:.2f} m/s"
+        imu = self.imu_track
+        if (imu.trusted and imu.live(now_s, cfg.timeout_s)
+                and imu.repeated_s(now_s) < cfg.freeze_s - 1e-9):
+            dv = self.imu_integral_mps - track.imu_at_same
+            if abs(dv) >= cfg.imu_dv_mps:
+                return f"the IMU integrates to {dv:+.2f} m/s since"
+        return ""
+
+    def _imu_frozen(self, now_s: float) -> bool:
+        cfg = self.config
+        imu = self.imu_track
+        if imu.repeated_s(now_s) < cfg.freeze_s - 1e-9 or not isinstance(imu.last, Imu):
+            return False
+        for track in (self.gps_track, self.wheel_track):
+            v = self._now_speed(track)
+            if (v is None or not track.trusted or not track.live(now_s, cfg.timeout_s)
+                    or track.repeated_s(now_s) >= cfg.freeze_s - 1e-9):
+                continue
+            explained = (imu.last.accel_x_mps2 - G_MPS2 * math.sin(self._pitch_rad())) \
+                * imu.repeated_s(now_s)
+            dv = v - self.speed_at_imu_same
+            if abs(dv - explained) >= cfg.imu_dv_mps:
+                self.reasons["imu"] = (f"imu repeats one reading for {imu.repeated_s(now_s):.2f} s "
+                                       f"while {track.name} changed by {dv:+.2f} m/s")
+                return True
+        return False
+
+    def _judge(self, track: _Track, bad: bool, now_s: float,
+               code: PlausibilityFault) -> list[Notice]:
+        """Trust bookkeeping of one source: untrusted at once, trusted after ``recover_s``."""
+        if bad:
+            track.plausible_since_s = math.inf
+            if track.trusted:
+                track.trusted = False
+                return [Notice(kind="fault", source=self.source, code=str(int(code)),
+                               reason=self.reasons.get(track.name, track.name) + ": untrusted")]
+            return []
+        if track.repeated_s(now_s) >= self.config.freeze_s - 1e-9:
+            # still repeating one reading: no evidence against it now (the vehicle stopped),
+            # none for it either. A frozen source stays untrusted until its readings vary.
+            track.plausible_since_s = math.inf
+            return []
+        if track.plausible_since_s == math.inf:
+            track.plausible_since_s = now_s
+        if not track.trusted and now_s - track.plausible_since_s >= self.config.recover_s - 1e-9:
+            track.trusted = True
+            self.reasons.pop(track.name, None)
+        return []
+
+    def _select_speed(self, now_s: float) -> float | None:
+        for track in (self.gps_track, self.wheel_track):
+            if track.trusted and track.live(now_s, self.config.timeout_s):
+                return self._now_speed(track)
+        return None
+
+    def _update_progress(self, now_s: float) -> None:
+        cfg = self.config
+        values = {"gps_ins": self.gps_odo_signed_m, "wheel_speed": self.wheel_odo_m}
+        tracks = {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track}
+        base = self._base
+        # untrusted sources count only when no source is trusted (then the largest is kept:
+        # conservative); a trusted one never lets an untrusted one's jump or freeze count
+        any_trusted = any(t.trusted and t.last is not None for t in tracks.values())
+        for name, track in tracks.items():
+            ok = track.last is not None and (track.trusted or not any_trusted)
+            if not ok:
+                base[name] = None
+            elif base[name] is None:
+                base[name] = values[name]
+        progress = {}
+        for d in (1, -1):
+            deltas = {n: d * (values[n] - b) for n, b in base.items() if b is not None}
+            best = deltas.get("gps_ins")
+            wheel = deltas.get("wheel_speed")
+            # the wheel counts when it says more than the GPS/INS by more than its own noise
+            # (else its noise alone would be taken whenever it happens to be the larger)
+            if wheel is not None and (best is None or wheel > best + cfg.wheel_noise_m):
+                best = wheel
+            progress[d] = self._committed[d] + (best if best is not None else 0.0)
+        self._progress = progress
+        if self._block_start_s is None:
+            self._block_start_s = now_s
+        elif now_s - self._block_start_s >= cfg.block_s - 1e-9:
+            self._committed = dict(progress)
+            for name in base:
+                if base[name] is not None:
+                    base[name] = values[name]
+            self._block_start_s = now_s
+
+
+__all__ = ["MotionPlausibility", "PlausibilityConfig", "PlausibilityFault"]
