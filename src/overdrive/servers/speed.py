@@ -45,6 +45,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.watchdog import Watchdog
+from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
 from overdrive.servers.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -105,6 +106,7 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
     lugging_throttle_pct: float = 80.0   # high gear, this much throttle, not keeping up: downshift
     lugging_time_s: float = 1.0
     gains: LongitudinalGains | None = None  # None: the preset's tuned gains (speed_control.GAINS)
+    direction_hold: DirectionHoldConfig = DirectionHoldConfig()  # hill start, rollback (issue 16)
 
 
 
@@ -178,6 +180,9 @@ class SpeedServer:
         self.slip_since_s: float | None = None
         self.lug_since_s: float | None = None
         self.pedals = PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE)
+        # direction hold (issue 16): hill-start hold, rollback catch, rollback faults
+        self.direction_hold = DirectionHold(params, cfg.direction_hold)
+        self.hold_command: HoldCommand | None = None   # this period's, for its notices
 
     # ------------------------------------------------------------------ node
 
@@ -206,8 +211,10 @@ class SpeedServer:
         if new_state != self.state:
             self._enter(now_s, new_state, event, out)
 
+        self.hold_command = None
         pedals, powertrain = self._actuators(dt_s)
         self.pedals = pedals
+        self._hold_notices(now_s, out)
         self._update_hint(now_s)
         out.append((Topic.PEDALS, pedals))
         out.append((Topic.POWERTRAIN, powertrain))
@@ -499,6 +506,7 @@ class SpeedServer:
                 self.gear_cmd = self.status.gear
             self.goal, self.goal_gear = "idle", self.gear_cmd
         if new_state == "run":
+            self.direction_hold.reset()
             direction = self._gear().direction
             self.controller.reset(direction * self.speed_filt_mps,
                                   direction * self.accel_filt_mps2, self.pedals.brake_pct)
@@ -546,15 +554,36 @@ class SpeedServer:
                     and not self.stopped)
             brake = 100.0 if self.latched or hard else self.config.hold_brake_pct
             self.controller.reset(direction * self.speed_filt_mps, a_g, brake)
+            self.direction_hold.reset()
             return PedalCommand(throttle_pct=0.0, brake_pct=brake, source=SOURCE), powertrain
         target = 0.0
         if self.goal == "run":
             target = min(self.target_mps, gear.max_speed_mps * self.config.gear_cap_fraction)
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
-        result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g,
-                                      direction * math.sin(pitch), gear, self.stopped)
+        sin_pitch = direction * math.sin(pitch)
+        result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g, sin_pitch, gear,
+                                      self.stopped)
+        hold = self.hold_command = self.direction_hold.step(
+            dt_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
+            throttle_pct=status.throttle_pct, gear=gear)
+        if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
+            self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
+            return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
+                    msgspec.structs.replace(powertrain, park_brake=True))
+        if hold.mode == "park":    # hill start: the parking brake holds while the throttle builds
+            powertrain = msgspec.structs.replace(powertrain, park_brake=True)
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
+
+    def _hold_notices(self, now_s: float, out: list) -> None:
+        """The direction hold's fault (once per onset) and rollback-caught notices."""
+        hold = self.hold_command
+        if hold is None:
+            return
+        if hold.caught:
+            out.append((Topic.NOTICE, Notice(kind="rollback", source=SOURCE, reason=hold.caught)))
+        if hold.fault is not None:
+            self._raise_fault(now_s, *hold.fault, out)
 
     def _update_hint(self, now_s: float) -> None:
         """Seed 001 hints; each one is held ``hint_hold_s`` so the client sees no chatter."""
@@ -604,6 +633,7 @@ class SpeedServer:
             gear=status.gear if status is not None else self.gear_cmd,
             state=self.state, fault=fault, fault_message=fault_message,
             hint=self.hint, estop=self.latched,  # type: ignore[arg-type]
+            direction_hold=self.direction_hold.state,  # type: ignore[arg-type]
         )
 
 
