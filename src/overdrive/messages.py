@@ -194,8 +194,7 @@ class SpeedState(Message, frozen=True):
     fault_message: str = ""
     hint: Hint = "none"
     estop: bool = False
-    direction_hold: DirectionHoldState = "free"   # issue 16: hill-start hold / rollback caught /
-                                                  # failed (held after a rollback fault, 1121-1129)
+    direction_hold: DirectionHoldState = "free"   # hill start / rollback hold; failed: held after a fault
 
 
 # --------------------------------------------------------------------------- actuators
