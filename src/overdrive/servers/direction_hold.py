@@ -183,13 +183,16 @@ class DirectionHold:
         return self.peak_m - self.travel_m
 
     def step(self, dt_s: float, *, target_mps: float, speed_mps: float, stopped: bool,
-             sin_pitch: float, throttle_pct: float, gear: Gear) -> HoldCommand:
-        """One period. ``speed_mps``: measured speed in the gear frame (unfiltered, so a
-        rollback is seen at once); ``stopped``: the server's filtered standstill;
-        ``sin_pitch``: positive when the gear points uphill; ``throttle_pct``: the throttle
-        actuator's reported position."""
+             sin_pitch: float, throttle_pct: float, gear: Gear,
+             agreed_speed_mps: float | None = None) -> HoldCommand:
+        """One period. ``speed_mps``: the server's measured speed in the gear frame (unfiltered,
+        so a rollback is seen at once); ``agreed_speed_mps``: the most forward of the live
+        speed sources (GPS/INS, wheels), integrated for the slow-creep rule so that one source
+        frozen or biased backwards never adds up to a rollback (default ``speed_mps``);
+        ``stopped``: the server's filtered standstill; ``sin_pitch``: positive when the gear
+        points uphill; ``throttle_pct``: the throttle actuator's reported position."""
         cfg = self.config
-        self.travel_m += speed_mps * dt_s
+        self.travel_m += (speed_mps if agreed_speed_mps is None else agreed_speed_mps) * dt_s
         self.peak_m = max(self.peak_m, self.travel_m)
         if target_mps <= 0.0 and self.state == "free":
             self.peak_m = self.travel_m   # not under a command: nothing to measure a rollback from
