@@ -13,9 +13,11 @@ throttle, for metres. Three rules, each a transition of ``TRANSITIONS``:
   drive-away release;
 - **rollback catch** (``rollback`` -> ``caught``): during a command (target speed above 0),
   motion against the gear faster than ``rollback_mps`` or further than ``rollback_m`` from the
-  furthest point since the release brakes at once: full service brake, throttle closed, the
-  parking brake takes over once the vehicle stands. One retry follows (``settled``), released
-  only with the throttle at full drive;
+  furthest point since the start (the anchor: a launch, or the last time the client asked for
+  0) brakes at once: full service brake, throttle closed, the parking brake takes over once the
+  vehicle stands. One retry follows (``settled``), released only with the throttle at full
+  drive; it is judged against the same anchor, so catch and retry together stay within
+  ``rollback_m`` plus one brake lag of travel;
 - **faults** (``gave_up`` / ``timeout`` -> ``failed``): a rollback caught with the drive at its
   limit (the vehicle cannot climb this grade in this gear, ``ROLLBACK_AT_FULL_DRIVE``), or a
   hold that could not be released within ``hold_timeout_s`` (``CANNOT_HOLD_GRADE``: the drive
@@ -45,6 +47,7 @@ class DirectionFault(enum.IntEnum):
     ROLLBACK_AT_FULL_DRIVE = 1121   # caught rolling back with the throttle at full: cannot climb
     CANNOT_HOLD_GRADE = 1122        # the hold was never released: the drive cannot beat the pull
     ROLLBACK_BEYOND_LIMIT = 1123    # rolled back further than the direction rule allows
+    STALLED_ON_GRADE = 1124         # standing uphill at full throttle: it neither climbs nor rolls
 
 
 FAULTS_ENDING_A_MOVE: Final = frozenset(DirectionFault)
@@ -62,6 +65,9 @@ FAULT_MESSAGES: Final[dict[DirectionFault, str]] = {
         "({pull_mps2:.2f} m/s^2); held, brakes on",
     DirectionFault.ROLLBACK_BEYOND_LIMIT:
         "rolled back {back_m:.3f} m against {gear}, more than {limit_m:.2f} m, with the brakes on",
+    DirectionFault.STALLED_ON_GRADE:
+        "standing {stalled_s:.1f} s in {gear} on a {grade_pct:.1f} % grade with the throttle at "
+        "{throttle_pct:.0f} %: the vehicle cannot climb it in this gear; held, brakes on",
 }
 
 
@@ -84,11 +90,12 @@ EVENTS: Final[dict[str, str]] = {
     "settled": "caught, standing for settle_s, a retry left",
     "gave_up": "caught, standing, and the rollback happened with the drive at full (a fault)",
     "timeout": "holding for hold_timeout_s without release (a fault)",
+    "stalled": "standing uphill under a command with the throttle at full for stall_s (a fault)",
     "cancel": "the target speed is 0: the client no longer asks to move",
 }
 
 TRANSITIONS: Final[dict[str, dict[str, str]]] = {
-    "free": {"launch": "holding", "rollback": "caught"},
+    "free": {"launch": "holding", "rollback": "caught", "stalled": "failed"},
     "holding": {"released": "free", "rollback": "caught", "timeout": "failed", "cancel": "free"},
     "caught": {"settled": "holding", "gave_up": "failed", "cancel": "free"},
     "failed": {"cancel": "free"},
@@ -128,6 +135,7 @@ class DirectionHoldConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=Tru
                                     # stopped_hold_s; the brake has fully built up after 4 lags)
     hold_timeout_s: float = 3.0     # holding this long is a fault: the driving module's gear
                                     # dwell (1 s) plus a stop, shift and run (~1.5 s) had their turn
+    stall_s: float = 3.0            # standing uphill at full throttle this long is a fault (same)
     limit_m: float = 0.10           # the judge's direction rule (issue 15): "no travel of more
                                     # than 0.10 m against the commanded direction"
     known_grade_margin: float = 0.10  # a grade within 10 % of one a gear failed on counts as it
@@ -153,6 +161,22 @@ class HoldCommand(msgspec.Struct, frozen=True):
 FREE: Final = HoldCommand("free")
 
 
+SOURCES_AGREE_MPS: Final = 0.15
+"""Two speed sources closer than this agree: 5 sigma of the difference of two readings with the
+presets' 0.02 m/s noise each (0.028 m/s)."""
+
+
+def agreed_speed_mps(speeds_mps: list[float]) -> float | None:
+    """The speed the live sources (GPS/INS, wheels; gear frame) agree on, for the slow-creep
+    rule: their mean when they agree (unbiased, less noisy), else the most forward of them, so
+    that one source frozen or biased backwards never adds up to a rollback. None: no source."""
+    if not speeds_mps:
+        return None
+    if max(speeds_mps) - min(speeds_mps) <= SOURCES_AGREE_MPS:
+        return sum(speeds_mps) / len(speeds_mps)
+    return max(speeds_mps)
+
+
 # --------------------------------------------------------------------------- the hold
 
 class DirectionHold:
@@ -171,10 +195,12 @@ class DirectionHold:
         self.standing_s = 0.0
         self.last_target_mps = 0.0
         self.travel_m = 0.0          # integral of the gear-frame speed
-        self.peak_m = 0.0            # furthest travel since the last anchor (launch, release)
+        self.peak_m = 0.0            # furthest travel since the anchor (launch, cancel)
         self.retry = False           # the next release needs full drive
         self.full_drive_caught = False
         self.caught_throttle_pct = 0.0
+        self.stalled_s = 0.0         # standing uphill at full throttle, in free
+        self.dt_s = 0.0
         self.beyond_limit = False    # ROLLBACK_BEYOND_LIMIT raised for this anchor
 
     @property
@@ -186,12 +212,12 @@ class DirectionHold:
              sin_pitch: float, throttle_pct: float, gear: Gear,
              agreed_speed_mps: float | None = None) -> HoldCommand:
         """One period. ``speed_mps``: the server's measured speed in the gear frame (unfiltered,
-        so a rollback is seen at once); ``agreed_speed_mps``: the most forward of the live
-        speed sources (GPS/INS, wheels), integrated for the slow-creep rule so that one source
-        frozen or biased backwards never adds up to a rollback (default ``speed_mps``);
+        so a rollback is seen at once); ``agreed_speed_mps``: the speed the live sources agree
+        on (``agreed_speed_mps()``), integrated for the slow-creep rule (default ``speed_mps``);
         ``stopped``: the server's filtered standstill; ``sin_pitch``: positive when the gear
         points uphill; ``throttle_pct``: the throttle actuator's reported position."""
         cfg = self.config
+        self.dt_s = dt_s
         self.travel_m += (speed_mps if agreed_speed_mps is None else agreed_speed_mps) * dt_s
         self.peak_m = max(self.peak_m, self.travel_m)
         if target_mps <= 0.0 and self.state == "free":
@@ -223,7 +249,7 @@ class DirectionHold:
     # ------------------------------------------------------------------ helpers
 
     def _enter(self, new: str, event: str | None) -> None:
-        if event in ("launch", "released", "cancel"):
+        if event in ("launch", "cancel"):
             self.peak_m = self.travel_m   # measure the rollback from here
             self.beyond_limit = False
         if event in ("launch", "cancel"):
@@ -233,6 +259,7 @@ class DirectionHold:
         self.state = new
         self.time_in_state_s = 0.0
         self.standing_s = 0.0
+        self.stalled_s = 0.0
 
     def _can_release(self, full_drive_mps2: float, pull_mps2: float, gear: Gear) -> bool:
         """The gear's full drive beats the pull with margin, and it has not failed on this grade."""
@@ -256,9 +283,18 @@ class DirectionHold:
                       f"on a {grade_pct:.1f} % grade (throttle {throttle_pct:.0f} %): full brake")
             return "rollback", HoldCommand("brake", caught=reason)
         if state == "free":
-            if (target_mps > 0.0 and self.last_target_mps <= 0.0 and stopped
-                    and G_MPS2 * sin_pitch > 0.0):
+            uphill = G_MPS2 * sin_pitch > 0.0
+            if target_mps > 0.0 and self.last_target_mps <= 0.0 and stopped and uphill:
                 return "launch", None
+            full = throttle_pct >= cfg.full_drive_pct
+            self.stalled_s = self.stalled_s + self.dt_s if (
+                target_mps > 0.0 and uphill and full and self.standing_s > 0.0) else 0.0
+            if self.stalled_s >= cfg.stall_s - 1e-9:
+                self._remember(gear, pull_mps2)
+                return "stalled", HoldCommand("brake", fault=(
+                    int(DirectionFault.STALLED_ON_GRADE), fault_message(
+                        DirectionFault.STALLED_ON_GRADE, stalled_s=self.stalled_s,
+                        gear=gear.name, grade_pct=grade_pct, throttle_pct=throttle_pct)))
             return None, None
         if state == "holding":
             if target_mps <= 0.0:
@@ -312,6 +348,6 @@ class DirectionHold:
             limit_m=self.config.limit_m))
 
 
-__all__ = ["EVENTS", "FAULTS_ENDING_A_MOVE", "STATES", "TRANSITIONS", "DirectionFault",
-           "DirectionHold", "DirectionHoldConfig", "HoldCommand", "mermaid_diagram",
-           "next_state"]
+__all__ = ["EVENTS", "FAULTS_ENDING_A_MOVE", "SOURCES_AGREE_MPS", "STATES", "TRANSITIONS",
+           "DirectionFault", "DirectionHold", "DirectionHoldConfig", "HoldCommand",
+           "agreed_speed_mps", "mermaid_diagram", "next_state"]
