@@ -7,7 +7,9 @@ Every run must end with no violation of the judge (direction, contact, ...) and 
 - **climbed**: no direction fault, the MOVE done (move server phase ``idle``) at its end;
 - **held**: a direction fault (1121-1129) from the speed server, the MOVE reported failed
   (``move_failed``, phase ``failed``: never done), the vehicle standing with its brakes on;
-- **climbing**: (a throttle just strong enough) still crawling up, no fault, at the end.
+- **underway**: (a throttle just strong enough) no fault and still working on the MOVE at the
+  end: crawling up, or standing while the throttle builds up again after the terminal creep
+  (standing at full throttle is a fault after 3 s; rolling back is caught).
 
 Healthy vehicles must climb (no false alarm); flat or downhill runs must be unchanged by the
 hold (same trace with the hold switched off).
@@ -39,21 +41,24 @@ def run(vehicle: str, grade: Any, events: list[dict], duration_s: float = 20.0,
 
 
 def hill_start(vehicle: str, grade_pct: float, kind: str = "move", effectiveness: float = 1.0,
-               start: str = "ready", obstacles: list[dict] | None = None) -> tuple[Any, float]:
+               start: str = "ready", obstacles: list[dict] | None = None,
+               duration_s: float = 25.0) -> tuple[Any, float]:
     """A MOVE up ``grade_pct`` (a REVERSE up it: the road falls ahead), from ready or after a
     first MOVE that stopped on the hill; a weak throttle from before the start that matters.
-    Returns the run and the time the measured command was issued."""
+    Returns the run and the time the measured command was issued. ``duration_s`` from the
+    measured command (a downshift costs seed 001's 5 s runwait)."""
     road = grade_pct if kind == "move" else -grade_pct
     weak = [] if effectiveness == 1.0 else [
         {"actuator": {"throttle": {"effectiveness": effectiveness}}}]
     move = {kind: {"distance_m": DISTANCE_M, "maxspeed_mps": 2.5, "curvature_1pm": 0}}
     if start == "ready":
         events = [{"at_s": 0.1, **w} for w in weak] + [{"at_s": 0.5, **move}]
-        return run(vehicle, road, events, obstacles=obstacles), 0.5
+        return run(vehicle, road, events, duration_s + 0.5, obstacles=obstacles), 0.5
     first = {kind: {"distance_m": 4, "maxspeed_mps": 2, "curvature_1pm": 0}}
-    events = [{"at_s": 0.5, **first}] + [{"at_s": 11.0, **w} for w in weak] + [
-        {"at_s": 12.0, **move}]
-    return run(vehicle, road, events, duration_s=32.0, obstacles=obstacles), 12.0
+    # the first MOVE is done by 20 s even after a downshift (5 s runwait) on 30 %
+    events = [{"at_s": 0.5, **first}] + [{"at_s": 19.0, **w} for w in weak] + [
+        {"at_s": 20.0, **move}]
+    return run(vehicle, road, events, duration_s + 20.0, obstacles=obstacles), 20.0
 
 
 def direction_faults(result: Any) -> list[dict]:
@@ -94,10 +99,9 @@ def outcome(result: Any, issued_s: float, reverse: bool) -> str:
     if phase == "idle":
         assert done_m >= DISTANCE_M - 0.6, done_m
         return "climbed"
-    assert phase == "moving", phase
-    speed = float(last["speed_mps"]) * (-1.0 if reverse else 1.0)
-    assert speed > 0.0, "no fault, not done and not climbing"
-    return "climbing"
+    assert phase in ("moving", "starting", "shifting"), phase
+    assert float(last["speed_mps"]) * (-1.0 if reverse else 1.0) >= -0.01   # not rolling back
+    return "underway"
 
 
 # --------------------------------------------------------------------------- weak throttle
@@ -185,7 +189,7 @@ HEALTHY = [(p, g, k) for p in PRESET_NAMES for g in (5, 10, 15, 20, 30) for k in
 @pytest.mark.parametrize("start", ["ready", "stop"])
 def test_a_healthy_hill_start_completes_without_a_fault(preset: str, grade_pct: float, kind: str,
                                                         start: str) -> None:
-    result, issued_s = hill_start(preset, grade_pct, kind, 1.0, start)
+    result, issued_s = hill_start(preset, grade_pct, kind, 1.0, start, duration_s=30.0)
     assert outcome(result, issued_s, reverse=kind == "reverse") == "climbed"
     kinds = {e["kind"] for e in result.summary["events"]}
     assert "move_failed" not in kinds
@@ -231,7 +235,7 @@ def test_ranger_in_each_forward_gear_climbs_or_is_held(gear: str, grade_pct: flo
 def test_the_ranger_in_high_on_30_percent_downshifts_and_completes() -> None:
     """Issue 16: the ranger in high on 30 % rolled 30.5 m back, then reported the MOVE done.
     Held on the parking brake, the driving module's steep-ground low gear takes over."""
-    result, issued_s = hill_start("ranger-6x6", 30, "move")
+    result, issued_s = hill_start("ranger-6x6", 30, "move", duration_s=30.0)
     assert outcome(result, issued_s, reverse=False) == "climbed"
     assert result.trace[-1]["gear"] == "low6wd"
 
