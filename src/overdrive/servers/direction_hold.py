@@ -60,9 +60,8 @@ FAULT_MESSAGES: Final[dict[DirectionFault, str]] = {
         "limit (throttle {throttle_pct:.0f} %, released at full throttle): the vehicle cannot "
         "climb it in this gear; held, brakes on",
     DirectionFault.CANNOT_HOLD_GRADE:
-        "hill start held {held_s:.1f} s in {gear} on a {grade_pct:.1f} % grade: the drive "
-        "({drive_mps2:.2f} m/s^2 at full throttle{known}) cannot beat the pull "
-        "({pull_mps2:.2f} m/s^2); held, brakes on",
+        "hill start held {held_s:.1f} s in {gear} on a {grade_pct:.1f} % grade: {why}; held, "
+        "brakes on",
     DirectionFault.ROLLBACK_BEYOND_LIMIT:
         "rolled back {back_m:.3f} m against {gear}, more than {limit_m:.2f} m, with the brakes on",
     DirectionFault.STALLED_ON_GRADE:
@@ -305,14 +304,12 @@ class DirectionHold:
             if enough and self._can_release(full_drive_mps2, pull_mps2, gear):
                 return "released", None
             if self.time_in_state_s >= cfg.hold_timeout_s - 1e-9:
-                known = full_drive_mps2 >= need   # the model says yes: it failed here before
+                why = self._why_held(full_drive_mps2, pull_mps2, throttle_pct, gear)
                 self._remember(gear, pull_mps2)
                 return "timeout", HoldCommand("brake", fault=(
                     int(DirectionFault.CANNOT_HOLD_GRADE), fault_message(
                         DirectionFault.CANNOT_HOLD_GRADE, held_s=self.time_in_state_s,
-                        gear=gear.name, grade_pct=grade_pct, drive_mps2=full_drive_mps2,
-                        pull_mps2=pull_mps2,
-                        known=", and it already failed on this grade" if known else "")))
+                        gear=gear.name, grade_pct=grade_pct, why=why)))
             return None, None
         if state == "caught":
             if self.standing_s < cfg.settle_s - 1e-9:
@@ -331,13 +328,24 @@ class DirectionHold:
             return "cancel", None
         return None, None
 
+    def _why_held(self, full_drive_mps2: float, pull_mps2: float, throttle_pct: float,
+                  gear: Gear) -> str:
+        need = pull_mps2 * (1.0 + self.config.release_margin)
+        if full_drive_mps2 < need:
+            return (f"its full drive ({full_drive_mps2:.2f} m/s^2) cannot beat the pull "
+                    f"({pull_mps2:.2f} m/s^2) with the {self.config.release_margin:.0%} margin")
+        if gear.name in self.failed_pull_mps2:
+            return "it already failed on this grade in this gear"
+        return (f"the throttle stayed at {throttle_pct:.0f} %, short of the drive the pull "
+                f"({pull_mps2:.2f} m/s^2) needs")
+
     def _remember(self, gear: Gear, pull_mps2: float) -> None:
         known = self.failed_pull_mps2.get(gear.name)
         self.failed_pull_mps2[gear.name] = pull_mps2 if known is None else min(known, pull_mps2)
 
     def _beyond_limit(self, gear: Gear) -> tuple[int, str] | None:
         """ROLLBACK_BEYOND_LIMIT once per anchor: detection only (the brakes are already on)."""
-        if self.beyond_limit or self.state == "free" and self.last_target_mps <= 0.0:
+        if self.beyond_limit or (self.state == "free" and self.last_target_mps <= 0.0):
             return None
         back = self.back_m
         if back <= self.config.limit_m:
