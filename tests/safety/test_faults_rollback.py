@@ -171,6 +171,21 @@ def test_repeated_moves_after_a_fault_never_add_up_to_a_rollback(preset: str) ->
     assert failed == {"1", "2", "3", "4"}
 
 
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("brake", [0.2, 0.5])
+@pytest.mark.parametrize("grade_pct", [15, 30])
+def test_weak_brakes_never_let_a_standing_vehicle_roll_back(preset: str, brake: float,
+                                                           grade_pct: float) -> None:
+    """The standstill hold's 50 % of a weak service brake does not hold the grade: the auto-hold's
+    parking brake does, from the ready start and after the MOVE (was up to 114 m back)."""
+    result = run(preset, grade_pct, [
+        {"at_s": 0.1, "actuator": {"brake": {"effectiveness": brake}}},
+        {"at_s": 0.5, "move": {"distance_m": 5, "maxspeed_mps": 2, "curvature_1pm": 0}}])
+    assert result.summary["violations"] == []
+    assert progress_m(result, 0.0, False)[1] <= 0.02
+    assert float(result.trace[-1]["x_m"]) > 4.0
+
+
 @pytest.mark.parametrize("effectiveness", [0.40, 0.43, 0.46, 0.50])
 def test_around_the_climbing_limit_of_low_gear(effectiveness: float) -> None:
     """escape-hybrid in low on 15 %: full drive beats the pull from effectiveness ~0.45."""

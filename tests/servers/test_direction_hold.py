@@ -188,11 +188,31 @@ def test_one_source_frozen_backwards_is_not_a_creep() -> None:
     assert d.hold.state == "free"
 
 
-def test_no_catch_without_a_command() -> None:
-    """Target 0: the speed loop's own standstill hold brakes; nothing is measured or caught."""
+@pytest.mark.parametrize(("filtered_mps", "caught"), [(-0.029, False), (-0.031, True)])
+def test_standing_without_a_command_creeping_back_is_caught(filtered_mps: float,
+                                                           caught: bool) -> None:
+    """Target 0: the parking brake is on (auto-hold); a creep back (a service brake too weak
+    for the grade) is caught with full brake, without a fault (no command failed)."""
     d = Driver()
-    d.step(500, target=0.0, speed=-0.05)
-    assert d.hold.state == "free" and d.caught == [] and d.faults == []
+    d.step(target=0.0)
+    assert d.last.mode == "park"
+    d.hold.step(DT_S, target_mps=0.0, speed_mps=-0.02, stopped=True, sin_pitch=sin_of(15.0),
+                throttle_pct=0.0, gear=d.gear, filtered_speed_mps=filtered_mps)
+    assert d.hold.state == ("caught" if caught else "free")
+    d.step(100, target=0.0)
+    assert d.hold.state == "free" and d.faults == [] and d.last.mode == "park"
+
+
+def test_the_auto_hold_goes_on_before_the_vehicle_stands_and_off_for_a_command() -> None:
+    d = Driver()
+    d.step(target=0.0, speed=0.3, stopped=False, grade_pct=0.0)
+    assert d.last.mode == "free"                     # still rolling to a stop
+    d.step(target=0.0, speed=0.04, stopped=False, grade_pct=0.0)
+    assert d.last.mode == "park"
+    d.step(target=0.0, speed=0.06, stopped=False, grade_pct=0.0)
+    assert d.last.mode == "park"                     # latched: noise cannot flicker it off
+    d.step(target=2.0, grade_pct=0.0)
+    assert d.last.mode == "free"                     # flat: released at once
 
 
 def test_a_catch_then_a_retry_at_full_drive_then_a_fault_once() -> None:

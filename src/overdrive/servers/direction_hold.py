@@ -18,6 +18,10 @@ throttle, for metres. Three rules, each a transition of ``TRANSITIONS``:
   vehicle stands. One retry follows (``settled``), released only with the throttle at full
   drive; it is judged against the same anchor, so catch and retry together stay within
   ``rollback_m`` plus one brake lag of travel;
+- **auto-hold**: standing in run with a target of 0, the parking brake is on as well as the speed
+  loop's standstill brake, and creeping back (filtered speed beyond ``standstill_rollback_mps``)
+  is caught with full brake as above: a service brake too weak for the grade at the standstill
+  hold's 50 % does not let the vehicle creep away;
 - **faults** (``gave_up`` / ``timeout`` -> ``failed``): a rollback caught with the drive at its
   limit (the vehicle cannot climb this grade in this gear, ``ROLLBACK_AT_FULL_DRIVE``), or a
   hold that could not be released within ``hold_timeout_s`` (``CANNOT_HOLD_GRADE``: the drive
@@ -123,6 +127,10 @@ class DirectionHoldConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=Tru
 
     rollback_mps: float = 0.1       # 5 sigma of the GPS speed noise (0.02 m/s): the speed loop's
                                     # own standstill rollback threshold (speed_control.ROLLBACK_MPS)
+    standstill_rollback_mps: float = 0.03  # target 0: the filtered speed (0.1 s) beyond this is a
+                                    # creep back: ~7 sigma of the filtered GPS noise (0.0045 m/s)
+    auto_hold_mps: float = 0.05     # target 0 and slower than this: the parking brake goes on
+                                    # before the vehicle stands (it only holds a standing vehicle)
     rollback_m: float = 0.03        # "a few centimetres": creeping back slower than rollback_mps;
                                     # leaves 0.07 m of the judge's 0.10 m to stop (brake lag 0.08 s)
     release_margin: float = 0.10    # the drive must beat the pull by 10 %: the plant's tolerance on
@@ -199,6 +207,7 @@ class DirectionHold:
         self.full_drive_caught = False
         self.caught_throttle_pct = 0.0
         self.stalled_s = 0.0         # standing uphill at full throttle, in free
+        self.auto_hold = False       # target 0 and (nearly) standing: the parking brake is on
         self.dt_s = 0.0
         self.beyond_limit = False    # ROLLBACK_BEYOND_LIMIT raised for this anchor
 
@@ -209,12 +218,14 @@ class DirectionHold:
 
     def step(self, dt_s: float, *, target_mps: float, speed_mps: float, stopped: bool,
              sin_pitch: float, throttle_pct: float, gear: Gear,
-             agreed_speed_mps: float | None = None) -> HoldCommand:
+             agreed_speed_mps: float | None = None,
+             filtered_speed_mps: float | None = None) -> HoldCommand:
         """One period. ``speed_mps``: the server's measured speed in the gear frame (unfiltered,
         so a rollback is seen at once); ``agreed_speed_mps``: the speed the live sources agree
         on (``agreed_speed_mps()``), integrated for the slow-creep rule (default ``speed_mps``);
-        ``stopped``: the server's filtered standstill; ``sin_pitch``: positive when the gear
-        points uphill; ``throttle_pct``: the throttle actuator's reported position."""
+        ``stopped``: the server's filtered standstill; ``filtered_speed_mps``: the speed behind
+        it (gear frame; default ``speed_mps``); ``sin_pitch``: positive when the gear points
+        uphill; ``throttle_pct``: the throttle actuator's reported position."""
         cfg = self.config
         self.dt_s = dt_s
         self.travel_m += (speed_mps if agreed_speed_mps is None else agreed_speed_mps) * dt_s
@@ -227,8 +238,9 @@ class DirectionHold:
 
         full_drive = drive_authority_mps2(self.params, gear, 0.0)
         pull = resistance_mps2(self.params, 0.0, sin_pitch)
-        event, command = self._event(target_mps, speed_mps, stopped, sin_pitch, throttle_pct,
-                                     gear, full_drive, pull)
+        filtered = speed_mps if filtered_speed_mps is None else filtered_speed_mps
+        event, command = self._event(target_mps, speed_mps, filtered, stopped, sin_pitch,
+                                     throttle_pct, gear, full_drive, pull)
         self.last_target_mps = target_mps
         new = next_state(self.state, event)
         if new != self.state or event in ("launch", "released"):
@@ -241,6 +253,12 @@ class DirectionHold:
                       "failed": "brake"}[self.state]  # type: ignore[assignment]
         if self.state == "holding" and not self._can_release(full_drive, pull, gear):
             mode = "brake"   # the gear cannot climb this: no throttle against the parking brake
+        if target_mps > 0.0:
+            self.auto_hold = False
+        elif stopped or abs(speed_mps) < cfg.auto_hold_mps:
+            self.auto_hold = True   # latched until the client asks to move: no flicker
+        if mode == "free" and self.auto_hold:
+            mode = "park"    # auto-hold: standing with nothing to do, the parking brake holds too
         if mode == "free" and fault is None and not caught:
             return FREE
         return HoldCommand(mode, fault, caught)
@@ -268,8 +286,8 @@ class DirectionHold:
             return False
         return full_drive_mps2 >= need
 
-    def _event(self, target_mps: float, speed_mps: float, stopped: bool, sin_pitch: float,
-               throttle_pct: float, gear: Gear, full_drive_mps2: float,
+    def _event(self, target_mps: float, speed_mps: float, filtered_mps: float, stopped: bool,
+               sin_pitch: float, throttle_pct: float, gear: Gear, full_drive_mps2: float,
                pull_mps2: float) -> tuple[str | None, HoldCommand | None]:
         cfg = self.config
         state = self.state
@@ -280,6 +298,12 @@ class DirectionHold:
             self.caught_throttle_pct = throttle_pct
             reason = (f"rolling back at {-speed_mps:.2f} m/s, {self.back_m:.3f} m, in {gear.name} "
                       f"on a {grade_pct:.1f} % grade (throttle {throttle_pct:.0f} %): full brake")
+            return "rollback", HoldCommand("brake", caught=reason)
+        if state == "free" and target_mps <= 0.0 and (
+                filtered_mps < -cfg.standstill_rollback_mps or speed_mps < -cfg.rollback_mps):
+            self.full_drive_caught = False
+            reason = (f"creeping back at {-filtered_mps:.2f} m/s in {gear.name} on a "
+                      f"{grade_pct:.1f} % grade while holding: full brake")
             return "rollback", HoldCommand("brake", caught=reason)
         if state == "free":
             uphill = G_MPS2 * sin_pitch > 0.0

@@ -571,7 +571,8 @@ class SpeedServer:
         hold = self.hold_command = self.direction_hold.step(
             dt_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
             throttle_pct=status.throttle_pct, gear=gear,
-            agreed_speed_mps=self._agreed_speed_mps(direction))
+            agreed_speed_mps=self._agreed_speed_mps(direction),
+            filtered_speed_mps=direction * self.speed_filt_mps)
         if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
             self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
             return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
