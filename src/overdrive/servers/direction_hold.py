@@ -89,7 +89,8 @@ EVENTS: Final[dict[str, str]] = {
     "launch": "a command to move from a standstill with the gear pointing uphill",
     "released": "the drive at the throttle's reported position beats the grade's pull (with "
                 "margin; at full throttle on a retry)",
-    "rollback": "during a command, motion against the gear beyond rollback_mps or rollback_m",
+    "rollback": "motion against the gear: during a command faster than rollback_mps or further "
+                "than rollback_m; standing with target 0, a creep beyond standstill_rollback_mps",
     "settled": "caught, standing for settle_s, a retry left",
     "gave_up": "caught, standing, and the rollback happened with the drive at full (a fault)",
     "timeout": "holding for hold_timeout_s without release (a fault)",
