@@ -193,7 +193,9 @@ class DirectionHold:
     def __init__(self, params: VehicleParams, config: DirectionHoldConfig | None = None) -> None:
         self.params = params
         self.config = config or DirectionHoldConfig()
-        self.failed_pull_mps2: dict[str, float] = {}   # gear -> the lowest pull it failed on
+        # gear -> the lowest pull it failed on; kept for the server's life (conservative: an
+        # actuator that recovers is trusted again only after a restart)
+        self.failed_pull_mps2: dict[str, float] = {}
         self.reset()
 
     def reset(self) -> None:
@@ -270,7 +272,6 @@ class DirectionHold:
         if event in ("launch", "cancel"):
             self.peak_m = self.travel_m   # measure the rollback from here
             self.beyond_limit = False
-        if event in ("launch", "cancel"):
             self.retry = False
         if event == "settled":
             self.retry = True
