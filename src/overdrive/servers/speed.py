@@ -577,7 +577,7 @@ class SpeedServer:
             self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
             return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
                     msgspec.structs.replace(powertrain, park_brake=True))
-        if hold.mode == "park":    # hill start: the parking brake holds while the throttle builds
+        if hold.mode == "park":    # hill start (throttle building) or auto-hold at a standstill
             powertrain = msgspec.structs.replace(powertrain, park_brake=True)
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
