@@ -43,12 +43,13 @@ class Driver:
         self.last = None
 
     def step(self, n: int = 1, *, target: float = 2.0, speed: float = 0.0, stopped: bool = True,
-             grade_pct: float = 15.0, throttle: float = 0.0, agreed: float | None = None) -> str:
+             grade_pct: float = 15.0, throttle: float = 0.0,
+             agreed: list[float] | None = None) -> str:
         for _ in range(n):
             self.last = cmd = self.hold.step(
                 DT_S, target_mps=target, speed_mps=speed, stopped=stopped,
                 sin_pitch=sin_of(grade_pct), throttle_pct=throttle, gear=self.gear,
-                agreed_speed_mps=agreed)
+                source_speeds_mps=agreed)
             if cmd.fault is not None:
                 self.faults.append(cmd.fault[0])
             if cmd.caught:
@@ -158,7 +159,7 @@ def test_rolling_back_faster_than_the_threshold_brakes_at_once(speed_mps: float,
                                                                caught: bool) -> None:
     d = Driver()
     released(d)
-    d.step(target=2.0, speed=speed_mps, stopped=True, throttle=60.0, agreed=0.0)
+    d.step(target=2.0, speed=speed_mps, stopped=True, throttle=60.0, agreed=[0.0])
     assert d.hold.state == ("caught" if caught else "free")
     assert d.last.mode == ("brake" if caught else "free")
     assert bool(d.caught) == caught
@@ -183,9 +184,10 @@ def test_one_source_frozen_backwards_is_not_a_creep() -> None:
     assert agreed_speed_mps([0.0, SOURCES_AGREE_MPS]) == pytest.approx(SOURCES_AGREE_MPS / 2)
     d = Driver()
     released(d)
-    d.step(300, target=2.0, speed=-0.04, stopped=False, throttle=60.0,
-           agreed=agreed_speed_mps([-0.04, 0.4]))
+    d.step(300, target=2.0, speed=-0.04, stopped=False, throttle=60.0, agreed=[-0.04, 0.4])
     assert d.hold.state == "free"
+    d.step(300, target=0.0, speed=-0.07, agreed=[-0.07, 0.0])   # frozen backwards at rest
+    assert d.hold.state == "free" and d.caught == []
 
 
 @pytest.mark.parametrize(("filtered_mps", "caught"), [(-0.029, False), (-0.031, True)])
@@ -196,8 +198,7 @@ def test_standing_without_a_command_creeping_back_is_caught(filtered_mps: float,
     d = Driver()
     d.step(target=0.0)
     assert d.last.mode == "park"
-    d.hold.step(DT_S, target_mps=0.0, speed_mps=-0.02, stopped=True, sin_pitch=sin_of(15.0),
-                throttle_pct=0.0, gear=d.gear, filtered_speed_mps=filtered_mps)
+    d.step(100, target=0.0, speed=filtered_mps, agreed=[filtered_mps, filtered_mps])
     assert d.hold.state == ("caught" if caught else "free")
     d.step(100, target=0.0)
     assert d.hold.state == "free" and d.faults == [] and d.last.mode == "park"

@@ -37,10 +37,12 @@ hill is the same as driving forward up one) and never reads a clock: ``step`` ge
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from typing import Final, Literal
 
 import msgspec
 
+from overdrive.control import first_order_lag
 from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
 from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
 
@@ -128,8 +130,9 @@ class DirectionHoldConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=Tru
 
     rollback_mps: float = 0.1       # 5 sigma of the GPS speed noise (0.02 m/s): the speed loop's
                                     # own standstill rollback threshold (speed_control.ROLLBACK_MPS)
-    standstill_rollback_mps: float = 0.03  # target 0: the filtered speed (0.1 s) beyond this is a
-                                    # creep back: ~7 sigma of the filtered GPS noise (0.0045 m/s)
+    standstill_rollback_mps: float = 0.03  # target 0: the most forward source, filtered, beyond
+                                    # this is a creep back: ~7 sigma of the filtered noise (0.0045)
+    standstill_filter_s: float = 0.1  # that filter: the speed server's speed_filter_s
     auto_hold_mps: float = 0.05     # target 0 and slower than this: the parking brake goes on
                                     # before the vehicle stands (it only holds a standing vehicle)
     rollback_m: float = 0.03        # "a few centimetres": creeping back slower than rollback_mps;
@@ -212,6 +215,7 @@ class DirectionHold:
         self.stalled_s = 0.0         # standing uphill at full throttle, in free
         self.auto_hold = False       # target 0 and (nearly) standing: the parking brake is on
         self.dt_s = 0.0
+        self.forward_filt_mps = 0.0  # the most forward live source, filtered (standstill rule)
         self.beyond_limit = False    # ROLLBACK_BEYOND_LIMIT raised for this anchor
 
     @property
@@ -221,17 +225,21 @@ class DirectionHold:
 
     def step(self, dt_s: float, *, target_mps: float, speed_mps: float, stopped: bool,
              sin_pitch: float, throttle_pct: float, gear: Gear,
-             agreed_speed_mps: float | None = None,
-             filtered_speed_mps: float | None = None) -> HoldCommand:
+             source_speeds_mps: Sequence[float] | None = None) -> HoldCommand:
         """One period. ``speed_mps``: the server's measured speed in the gear frame (unfiltered,
-        so a rollback is seen at once); ``agreed_speed_mps``: the speed the live sources agree
-        on (``agreed_speed_mps()``), integrated for the slow-creep rule (default ``speed_mps``);
-        ``stopped``: the server's filtered standstill; ``filtered_speed_mps``: the speed behind
-        it (gear frame; default ``speed_mps``); ``sin_pitch``: positive when the gear points
-        uphill; ``throttle_pct``: the throttle actuator's reported position."""
+        so a rollback is seen at once); ``source_speeds_mps``: each live speed source (GPS/INS,
+        wheels) in the gear frame (default: ``speed_mps`` alone): what they agree on is
+        integrated for the slow-creep rule, and the most forward of them, filtered, is the
+        standstill creep rule's, so one source frozen or biased backwards fakes neither;
+        ``stopped``: the server's filtered standstill; ``sin_pitch``: positive when the gear
+        points uphill; ``throttle_pct``: the throttle actuator's reported position."""
         cfg = self.config
         self.dt_s = dt_s
-        self.travel_m += (speed_mps if agreed_speed_mps is None else agreed_speed_mps) * dt_s
+        sources = list(source_speeds_mps) if source_speeds_mps else [speed_mps]
+        agreed = agreed_speed_mps(sources)
+        self.forward_filt_mps = first_order_lag(max(sources), self.forward_filt_mps,
+                                                cfg.standstill_filter_s, dt_s)
+        self.travel_m += (speed_mps if agreed is None else agreed) * dt_s
         self.peak_m = max(self.peak_m, self.travel_m)
         if target_mps <= 0.0 and self.state == "free":
             self.peak_m = self.travel_m   # not under a command: nothing to measure a rollback from
@@ -241,9 +249,8 @@ class DirectionHold:
 
         full_drive = drive_authority_mps2(self.params, gear, 0.0)
         pull = resistance_mps2(self.params, 0.0, sin_pitch)
-        filtered = speed_mps if filtered_speed_mps is None else filtered_speed_mps
-        event, command = self._event(target_mps, speed_mps, filtered, stopped, sin_pitch,
-                                     throttle_pct, gear, full_drive, pull)
+        event, command = self._event(target_mps, speed_mps, self.forward_filt_mps, stopped,
+                                     sin_pitch, throttle_pct, gear, full_drive, pull)
         self.last_target_mps = target_mps
         new = next_state(self.state, event)
         if new != self.state or event in ("launch", "released"):
@@ -301,8 +308,7 @@ class DirectionHold:
             reason = (f"rolling back at {-speed_mps:.2f} m/s, {self.back_m:.3f} m, in {gear.name} "
                       f"on a {grade_pct:.1f} % grade (throttle {throttle_pct:.0f} %): full brake")
             return "rollback", HoldCommand("brake", caught=reason)
-        if state == "free" and target_mps <= 0.0 and (
-                filtered_mps < -cfg.standstill_rollback_mps or speed_mps < -cfg.rollback_mps):
+        if state == "free" and target_mps <= 0.0 and filtered_mps < -cfg.standstill_rollback_mps:
             self.full_drive_caught = False
             reason = (f"creeping back at {-filtered_mps:.2f} m/s in {gear.name} on a "
                       f"{grade_pct:.1f} % grade while holding: full brake")

@@ -45,12 +45,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.watchdog import Watchdog
-from overdrive.servers.direction_hold import (
-    DirectionHold,
-    DirectionHoldConfig,
-    HoldCommand,
-    agreed_speed_mps,
-)
+from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
 from overdrive.servers.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -571,8 +566,7 @@ class SpeedServer:
         hold = self.hold_command = self.direction_hold.step(
             dt_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
             throttle_pct=status.throttle_pct, gear=gear,
-            agreed_speed_mps=self._agreed_speed_mps(direction),
-            filtered_speed_mps=direction * self.speed_filt_mps)
+            source_speeds_mps=self._source_speeds_mps(direction))
         if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
             self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
             return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
@@ -582,12 +576,12 @@ class SpeedServer:
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
 
-    def _agreed_speed_mps(self, direction: int) -> float | None:
-        """What the live speed sources (GPS/INS, wheels) agree on, in the gear frame."""
+    def _source_speeds_mps(self, direction: int) -> list[float]:
+        """Each live speed source (GPS/INS, wheels), in the gear frame."""
         now_s = self.last_now_s if self.last_now_s is not None else 0.0
-        return agreed_speed_mps([direction * s for s, last_s in (
+        return [direction * s for s, last_s in (
             (self.gps.speed_mps if self.gps is not None else None, self.last_gps_s),
-            (self.wheel_mps, self.last_wheel_s)) if s is not None and self._fresh(last_s, now_s)])
+            (self.wheel_mps, self.last_wheel_s)) if s is not None and self._fresh(last_s, now_s)]
 
     def _hold_notices(self, now_s: float, out: list) -> None:
         """The direction hold's fault (once per onset) and rollback-caught notices."""
