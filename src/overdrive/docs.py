@@ -190,6 +190,15 @@ def state_machines_md() -> str:
             "```mermaid", move_server.mermaid_diagram().rstrip(), "```", "",
             "| event | raised when |", "|---|---|"]
     out += [f"| `{e}` | {_cell(why)} |" for e, why in move_server.EVENTS.items()]
+    from overdrive.servers import direction_hold
+
+    out += ["", "## Direction hold (speed server, issue 16)", "",
+            "`overdrive.servers.direction_hold.TRANSITIONS[state][event] -> state`: the hill-start "
+            "hold on the parking brake, the rollback catch and the rollback faults "
+            "(`SpeedState.direction_hold`).", "",
+            "```mermaid", direction_hold.mermaid_diagram().rstrip(), "```", "",
+            "| event | raised when |", "|---|---|"]
+    out += [f"| `{e}` | {_cell(why)} |" for e, why in direction_hold.EVENTS.items()]
     modes = _mode_triggers()
     out += ["", "## XGV safety modes (seed 000)", "",
             "`overdrive.vehicle.modes.safety_mode`: the first mode (highest precedence) whose "

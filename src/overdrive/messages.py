@@ -63,6 +63,7 @@ SpeedStateName = Literal[
 ]
 RequestableState = Literal["parked", "paused", "idle", "run"]
 Hint = Literal["none", "suggest_upshift", "suggest_downshift", "suggest_slowdown", "slipping"]
+DirectionHoldState = Literal["free", "holding", "caught", "failed"]
 
 
 
@@ -193,6 +194,7 @@ class SpeedState(Message, frozen=True):
     fault_message: str = ""
     hint: Hint = "none"
     estop: bool = False
+    direction_hold: DirectionHoldState = "free"   # hill start / rollback hold; failed: held after a fault
 
 
 # --------------------------------------------------------------------------- actuators

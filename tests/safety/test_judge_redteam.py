@@ -127,11 +127,21 @@ def test_an_advance_from_another_source_does_not_switch_off_the_rollback_rule() 
     assert found.get("direction", {}).get("amount") == pytest.approx(7.0)
 
 
+@pytest.fixture
+def without_direction_hold(monkeypatch) -> None:
+    """The stack as it was before issue 16's direction hold (the speed server's hold never
+    acts), so the judge still has the known hill-start rollback to judge."""
+    from overdrive.servers.direction_hold import FREE
+
+    monkeypatch.setattr(speed_module.DirectionHold, "step", lambda self, *a, **k: FREE)
+
+
+@pytest.mark.usefixtures("without_direction_hold")
 def test_hill_start_rollback_with_another_source_advancing_is_judged() -> None:
     """FN, rule 2, whole run: the known hill-start rollback (15 % grade, throttle at 20 %),
     MOVE 15 m at 8 m/s, plus one advance of 100 m from ``lidar`` 0.1 s later. The vehicle rolls
     back 16.96 m under the forward MOVE (independent, from x/y); the judge exits 0. Without the
-    advance it reports ``direction`` 16.957 m."""
+    advance it reports ``direction`` 16.957 m. (The stack without issue 16's direction hold.)"""
     result = run(world={"grade_percent": 15}, events=[
         {"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
         {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 8, "curvature_1pm": 0}},
@@ -140,6 +150,7 @@ def test_hill_start_rollback_with_another_source_advancing_is_judged() -> None:
     assert details(result).get("direction", {}).get("amount", 0.0) > 10.0
 
 
+@pytest.mark.usefixtures("without_direction_hold")
 def test_set_speed_runs_judge_rollback_against_the_gear() -> None:
     """FN, rule 2 (and 3): in a ``set_speed`` run every SPSS is a command with no direction
     (``_new_command(None)``), so the direction rule never applies although each SPSS names its

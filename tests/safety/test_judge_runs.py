@@ -197,7 +197,6 @@ def test_frozen_gps_at_standstill_does_not_run_away(preset: str) -> None:
         {"at_s": 0.2, "sensor": {"name": "gps", "fault": "freeze", "for_s": 30}}, MOVE_30]), "authorization")
 
 
-@pytest.mark.xfail(strict=True, reason="issue 16: rollback on a hill start")
 def test_hill_start_does_not_roll_back() -> None:
     no_violation(run(duration_s=20, world={"grade_percent": 15}, events=[
         {"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
@@ -372,7 +371,6 @@ def test_reversing_towards_an_unreported_obstacle_does_not_hit_it() -> None:
         {"at_s": 0.5, "reverse": {"distance_m": 12, "maxspeed_mps": 2, "curvature_1pm": 0}}]), "contact")
 
 
-@issue(16, "rollback on a hill start hits the car parked behind")
 def test_hill_start_rollback_does_not_hit_the_car_behind() -> None:
     no_violation(run(duration_s=20, world={"grade_percent": 15, "obstacles": [{"x_m": -6, "y_m": 0}]},
                      events=[{"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},

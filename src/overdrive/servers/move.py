@@ -96,7 +96,8 @@ SHORTEST_DECEL_MPS2 = 0.1   # floor of the hardest deceleration (a slope steeper
 
 # --------------------------------------------------------------------------- phases (table)
 
-PHASES = ("idle", "starting", "shifting", "moving", "stopping", "estopped", "interrupted")
+PHASES = ("idle", "starting", "shifting", "moving", "stopping", "estopped", "interrupted",
+          "failed")
 """``MoveStatus.phase`` values."""
 
 EVENTS: dict[str, str] = {
@@ -110,23 +111,27 @@ EVENTS: dict[str, str] = {
     "stopped": "the vehicle stands after a STOP",
     "estop": "radar target inside the stopping distance plus margin",
     "interrupt": "the vehicle left drive-by-wire or speed control: the command is discarded",
+    "failed": "the speed server holds the vehicle after a direction fault (rollback, a grade the "
+              "gear cannot climb, issue 16): the command is abandoned, never done",
 }
 
 _COMMANDS = {"command_start": "starting", "command_shift": "shifting", "command_run": "moving"}
 
 _INTERRUPT = {"interrupt": "interrupted"}
+_FAILED = {"failed": "failed"}
 
 TRANSITIONS: dict[str, dict[str, str]] = {
     "idle": {**_COMMANDS, "stop_cmd": "stopping", "estop": "estopped", **_INTERRUPT},
     "starting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped",
-                 **_INTERRUPT},
+                 **_INTERRUPT, **_FAILED},
     "shifting": {**_COMMANDS, "ready": "moving", "stop_cmd": "stopping", "estop": "estopped",
-                 **_INTERRUPT},
+                 **_INTERRUPT, **_FAILED},
     "moving": {**_COMMANDS, "lost": "starting", "done": "idle", "stop_cmd": "stopping",
-               "estop": "estopped", **_INTERRUPT},
+               "estop": "estopped", **_INTERRUPT, **_FAILED},
     "stopping": {**_COMMANDS, "stopped": "idle", "estop": "estopped", **_INTERRUPT},
     "estopped": dict(_COMMANDS),
     "interrupted": {**_COMMANDS, "stop_cmd": "interrupted", "estop": "estopped"},
+    "failed": {**_COMMANDS, "stop_cmd": "stopping", "estop": "estopped", **_INTERRUPT},
 }
 """``TRANSITIONS[phase][event] -> phase``; an event a phase does not list leaves it as is."""
 
@@ -214,6 +219,7 @@ class MoveServer:
         self.latched = False
         self.fault_active = False
         self.estop_reason = ""
+        self.failure_reason = ""   # why the last command failed (phase "failed")
         # inputs
         self.gps: GpsIns | None = None
         self.gps_s = -math.inf
@@ -586,6 +592,8 @@ class MoveServer:
             if self.fault_active and self._stopped(now_s):
                 self.fault_active = False     # brakes held by idle from now on; latch stays
             return None
+        if phase in ("starting", "shifting", "moving") and self._direction_failed(out):
+            return "failed"
         if phase in ("starting", "shifting") and self.active is not None:
             return "ready" if self._ready(self.active.direction) else None
         if phase == "moving" and self.active is not None:
@@ -598,6 +606,21 @@ class MoveServer:
         if phase == "stopping" and self._stopped(now_s):
             return "stopped"
         return None
+
+    def _direction_failed(self, out: list) -> bool:
+        """True when the speed server holds the vehicle after a direction fault (issue 16): the
+        active command is abandoned and reported failed (never done), with the fault's words."""
+        ss = self.speed_state
+        if self.active is None or ss is None or ss.direction_hold != "failed":
+            return False
+        command = self.active.command
+        self.active = None
+        self.failure_reason = (f"command {command.command_id} failed: "
+                               f"{ss.fault_message or 'the speed server holds the vehicle'}")
+        out.append((Topic.NOTICE, Notice(kind="move_failed", source=SOURCE,
+                                         code=str(command.command_id),
+                                         reason=self.failure_reason)))
+        return True
 
     def _interruption(self, out: list) -> bool:
         """True on the period an engaged vehicle is interrupted: the command is discarded."""
@@ -761,6 +784,8 @@ class MoveServer:
         out.append((Topic.STEERING, SteeringRequest(curvature_1pm=self.curvature_1pm)))
         reason = self.estop_reason if self.latched else "; ".join(
             [r.reason for r in self.monitor.active.values()]) if moving else ""
+        if self.phase == "failed":
+            reason = self.failure_reason
         out.append((Topic.MOVE_STATUS, MoveStatus(
             command_id=self.last_command_id, phase=self.phase,
             remaining_m=self.remaining_m if self.active is not None else 0.0,

@@ -47,6 +47,7 @@ from overdrive.messages import (
 from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.safety.watchdog import Watchdog
+from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
 from overdrive.servers.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -108,6 +109,7 @@ class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True)
     fault_hold_s: float = 1.0            # a fault stays in the replies at least this long
     hints: HintConfig = HintConfig()     # seed 001 hints' thresholds (servers.speed_hints)
     gains: LongitudinalGains | None = None  # None: the preset's tuned gains (speed_control.GAINS)
+    direction_hold: DirectionHoldConfig = DirectionHoldConfig()  # hill start, rollback (issue 16)
 
 
 
@@ -184,6 +186,9 @@ class SpeedServer:
         self.actuator_monitor = PedalMonitor(params)
         self.engine_cut = False
         self.monitor_actuators = True   # False where the status reports efforts, not positions
+        # direction hold (issue 16): hill-start hold, rollback catch, rollback faults
+        self.direction_hold = DirectionHold(params, cfg.direction_hold)
+        self.hold_command: HoldCommand | None = None   # this period's, for its notices
 
     # ------------------------------------------------------------------ node
 
@@ -216,8 +221,10 @@ class SpeedServer:
         if new_state != self.state:
             self._enter(now_s, new_state, event, out)
 
+        self.hold_command = None
         pedals, powertrain = self._actuators(dt_s)
         self.pedals = pedals
+        self._hold_notices(now_s, out)
         self._update_hint(now_s)
         out.append((Topic.PEDALS, pedals))
         out.append((Topic.POWERTRAIN, powertrain))
@@ -541,6 +548,7 @@ class SpeedServer:
                 self.gear_cmd = self.status.gear
             self.goal, self.goal_gear = "idle", self.gear_cmd
         if new_state == "run":
+            self.direction_hold.reset()
             direction = self._gear().direction
             self.controller.reset(direction * self.speed_filt_mps,
                                   direction * self.accel_filt_mps2, self.pedals.brake_pct)
@@ -584,13 +592,25 @@ class SpeedServer:
                     and not self.stopped)
             brake = 100.0 if self.latched or hard else self.config.hold_brake_pct
             self.controller.reset(direction * self.speed_filt_mps, a_g, brake)
+            self.direction_hold.reset()
             return PedalCommand(throttle_pct=0.0, brake_pct=brake, source=SOURCE), powertrain
         target = 0.0
         if self.goal == "run":
             target = min(self.target_mps, gear.max_speed_mps * self.config.gear_cap_fraction)
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
-        result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g,
-                                      direction * math.sin(pitch), gear, self.stopped)
+        sin_pitch = direction * math.sin(pitch)
+        result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g, sin_pitch, gear,
+                                      self.stopped)
+        hold = self.hold_command = self.direction_hold.step(
+            dt_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
+            throttle_pct=status.throttle_pct, gear=gear,
+            source_speeds_mps=self._source_speeds_mps(direction))
+        if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
+            self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
+            return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
+                    msgspec.structs.replace(powertrain, park_brake=True))
+        if hold.mode == "park":    # hill start (throttle building) or auto-hold at a standstill
+            powertrain = msgspec.structs.replace(powertrain, park_brake=True)
         probe = self._brake_probe(dt_s, result, target, v_g, direction, pitch, status)
         if probe is not None:
             return probe, powertrain
@@ -614,6 +634,23 @@ class SpeedServer:
         self.controller.throttle_pid.reset(0.0)   # no wind-up while the probe holds the throttle
         return PedalCommand(throttle_pct=0.0, brake_pct=max(probe_pct, loop.brake_pct),
                             source=SOURCE)
+
+    def _source_speeds_mps(self, direction: int) -> list[float]:
+        """Each live speed source (GPS/INS, wheels), in the gear frame."""
+        now_s = self.last_now_s if self.last_now_s is not None else 0.0
+        return [direction * s for s, last_s in (
+            (self.gps.speed_mps if self.gps is not None else None, self.last_gps_s),
+            (self.wheel_mps, self.last_wheel_s)) if s is not None and self._fresh(last_s, now_s)]
+
+    def _hold_notices(self, now_s: float, out: list) -> None:
+        """The direction hold's fault (once per onset) and rollback-caught notices."""
+        hold = self.hold_command
+        if hold is None:
+            return
+        if hold.caught:
+            out.append((Topic.NOTICE, Notice(kind="rollback", source=SOURCE, reason=hold.caught)))
+        if hold.fault is not None:
+            self._raise_fault(now_s, *hold.fault, out)
 
     def _update_hint(self, now_s: float) -> None:
         """Seed 001 hints (``servers.speed_hints``), from the vehicle as this period saw it."""
@@ -639,6 +676,7 @@ class SpeedServer:
             gear=status.gear if status is not None else self.gear_cmd,
             state=self.state, fault=fault, fault_message=fault_message,
             hint=self.hint, estop=self.latched,  # type: ignore[arg-type]
+            direction_hold=self.direction_hold.state,  # type: ignore[arg-type]
         )
 
 
