@@ -37,13 +37,13 @@ from overdrive.scenario import Scenario, load_scenario
 from overdrive.sim import build_nodes, run_scenario
 from overdrive.vehicle.plain_jaus import (
     DEFAULT_POSITION_RMS_M,
-    EARTH_RADIUS_M,
     JUMP_NOISE_SIGMAS,
     MAX_ABS_LATITUDE_DEG,
     PLAUSIBLE_SPEED_MPS,
     STATUS_TIMEOUT_S,
     LocalFrame,
     PoseRefused,
+    local_radii_m,
     safety_mode_from_status,
 )
 from overdrive.vehicle.presets import PRESETS
@@ -73,8 +73,9 @@ JUMP_ALLOWED_M = JUMP_NOISE_SIGMAS * math.sqrt(2.0) * DEFAULT_POSITION_RMS_M   #
 def fix(north_m: float = 0.0, east_m: float = 0.0, yaw_rad: float = 0.0,
         lat0: float = LAT0, lon0: float = LON0, **fields: float | None) -> ReportGlobalPose:
     """A Global Pose ``north_m``/``east_m`` from (lat0, lon0) (the inverse of the projection)."""
-    lat = lat0 + math.degrees(north_m / EARTH_RADIUS_M)
-    lon = lon0 + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+    meridian_m, prime_vertical_m = local_radii_m(lat0)
+    lat = lat0 + math.degrees(north_m / meridian_m)
+    lon = lon0 + math.degrees(east_m / (prime_vertical_m * math.cos(math.radians(lat0))))
     values: dict[str, float | None] = {"latitude_deg": lat, "longitude_deg": lon,
                                        "yaw_rad": yaw_rad, "position_rms_m": 1.0, **fields}
     return ReportGlobalPose(**values)  # type: ignore[arg-type]
@@ -123,7 +124,7 @@ def test_the_antimeridian_is_a_few_metres_not_the_world() -> None:
     frame.project(fix(lat0=0.0, lon0=179.99999), 0.0)
     across = frame.project(fix(lat0=0.0, lon0=-179.99999), 1.0)
     assert across.x_m == pytest.approx(0.0, abs=1e-6)
-    assert across.y_m == pytest.approx(EARTH_RADIUS_M * math.radians(2e-5), rel=1e-6)
+    assert across.y_m == pytest.approx(local_radii_m(0.0)[1] * math.radians(2e-5), rel=1e-6)
 
 
 @pytest.mark.parametrize(("fields", "why"), [
