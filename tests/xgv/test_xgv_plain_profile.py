@@ -267,12 +267,18 @@ def test_a_refused_fix_over_the_wire_never_moves_the_stacks_pose(bad: dict) -> N
     poses = [o[Topic.GPS_INS] for o in outs]
     assert all(isinstance(p, GpsIns) and (p.x_m, p.y_m) == (good.x_m, good.y_m) for p in poses)
     assert client.stats.rejected_reports == 5
+    # refused fixes are a fault once they cost the stack its position (ODOMETER_GAP_S
+    # without an accepted one), once per onset, with the reason; before that only counted
+    assert not [n for o in outs for t, n in o.items() if t == Topic.NOTICE]
+    outs = [report(client, 0.25 + 0.01 * i, pose=ReportGlobalPose(**{**base, **bad}))
+            for i in range(15)]
     faults = [n for o in outs for t, n in o.items() if t == Topic.NOTICE]
-    assert [f.code for f in faults] == ["xgv_pose"]      # once per onset, with the reason
+    assert [f.code for f in faults] == ["xgv_pose"]
     assert "Global Pose" in faults[0].reason
-    report(client, 0.3, pose=fix(1.5))                    # a good fix ends the onset
-    again = report(client, 0.31, pose=ReportGlobalPose(**{**base, **bad}))
-    assert [n.code for t, n in again.items() if t == Topic.NOTICE] == ["xgv_pose"]
+    report(client, 0.5, pose=fix(1.5))                    # a good fix ends the onset
+    again = [report(client, 0.51 + 0.01 * i, pose=ReportGlobalPose(**{**base, **bad}))
+             for i in range(30)]
+    assert [n.code for o in again for t, n in o.items() if t == Topic.NOTICE] == ["xgv_pose"]
 
 
 @pytest.mark.parametrize(("age_s", "published"), [(ODOMETER_GAP_S - 0.01, True),

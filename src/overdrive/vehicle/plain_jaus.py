@@ -59,16 +59,18 @@ DEFAULT_POSITION_RMS_M: Final = 1.0   # a fix without its accuracy: ojVehicleSim
 JUMP_NOISE_SIGMAS: Final = 6.0        # position noise allowed on a jump (as REPORTED_POSE_BOUND_M)
 SPEED_CHECK_WINDOW_S: Final = 10.0    # blocks compared with the odometer this far back
 SPEED_CHECK_BLOCK_S: Final = 0.5      # poses averaged per block: at 100 Hz, 50 fixes, noise of
-                                      # a block pair 1/5 of a single pair's (1.4 m bound at
+                                      # a block pair 1/5 of a single pair's (1.3 m bound at
                                       # 1 m rms); a longer block delays the check
-SPEED_CHECK_SIGMAS: Final = 7.0       # the bound in standard deviations of the blocks' means:
+SPEED_CHECK_SIGMAS: Final = 6.5       # the bound in standard deviations of the blocks' means:
                                       # healthy runs with 1 m noise peaked at 5.2 (150 runs,
                                       # both presets, straight and curved); thousands of
-                                      # comparisons a second need a tail of e^-24 (Rayleigh)
+                                      # comparisons a second need a tail of e^-21 (Rayleigh);
+                                      # 7 lets a half speed at 0.02 m rms reach 2.9 m/s
 REPORT_SKEW_S: Final = 0.25           # pose and velocity reports out of step by up to the
                                       # odometer's gap (xgv_client.ODOMETER_GAP_S): |v| x this
-STATUS_TIMEOUT_S: Final = 1.5         # no component status for this long: unknown (the
-                                      # heartbeat timeout; OpenJAUS reports at up to 50 Hz)
+STATUS_TIMEOUT_S: Final = 0.5         # no component status for this long: unknown (25 of
+                                      # OpenJAUS's 50 Hz reports lost; was the 1.5 s heartbeat
+                                      # timeout: a stale READY drove on for 1.5 s)
 
 
 class JausSensor(IntEnum):
@@ -142,7 +144,8 @@ class SpeedCheck:
     blocks' mean positions is at most the difference of their mean odometers on any path
     (triangle inequality over every pair of their poses, all of the later block's after the
     earlier's), so the bound is the noise of the two means, ``SPEED_CHECK_SIGMAS`` times
-    sqrt(sum rms^2 / n^2 of each), plus the reports' skew at the blocks' top speed. The
+    sqrt(sum rms^2 / n^2 of each), plus the reports' skew at the later one's speed (the
+    odometer integrates velocity reports as they come, so it lags the pose, as before). The
     averaging assumes the fixes' errors independent (a simulator's, or white noise); a GPS
     whose error wanders over seconds is averaged less than the bound assumes. Only a speed
     reading low is caught (a high one stops the move early)."""
@@ -167,11 +170,11 @@ class SpeedCheck:
         latest = (x_m, y_m, odometer_m, rms_m * rms_m, abs(speed_mps), 1)
         for x_m, y_m, odometer_m, var_m2, speed1_mps, n in (
                 latest, (*block.mean(), block.speed_mps, block.n)):
-            for t_s, x0_m, y0_m, odometer0_m, var0_m2, speed0_mps in self.blocks:
+            for t_s, x0_m, y0_m, odometer0_m, var0_m2, _ in self.blocks:
                 chord_m = math.hypot(x_m - x0_m, y_m - y0_m)
                 driven_m = odometer_m - odometer0_m
                 allowed_m = (SPEED_CHECK_SIGMAS * math.sqrt(var_m2 + var0_m2)
-                             + max(speed0_mps, speed1_mps) * REPORT_SKEW_S)
+                             + speed1_mps * REPORT_SKEW_S)
                 if chord_m - driven_m > allowed_m:
                     return (f"Velocity State reads low: the Global Pose (mean of {n} fixes) "
                             f"moved {chord_m:.1f} m in {now_s - t_s:.1f} s, the speed says "

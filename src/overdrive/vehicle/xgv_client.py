@@ -255,6 +255,7 @@ class XgvClient:
         self.pd_status_s = -math.inf
         self.pose_s = -math.inf                # plain: when a Global Pose was last accepted
         self.checked_pose_s = -math.inf        # and the last one the speed check took
+        self.pose_refused: str | None = None   # why the fixes since then were refused
         self.stats = ClientStats()
         # discovery: our node's node manager (component 1, instance 1)
         self.own_node_manager = JausId(cfg.client_id.subsystem, cfg.client_id.node, 1, 1)
@@ -440,9 +441,10 @@ class XgvClient:
                 self.pose = self.frame.project(m, now_s)
             except PoseRefused as exc:   # never used: the stack keeps the last good pose
                 self.stats.rejected_reports += 1
-                self._notice("pose", str(exc))
+                self.pose_refused = str(exc)   # a fault once it costs the stack its position
             else:
                 self._told.discard("pose")
+                self.pose_refused = None
                 self.pose_s = now_s
         elif isinstance(m, ReportComponentStatus) and source == self.pd:
             self.pd_status, self.pd_status_s = m.primary_status, now_s
@@ -529,6 +531,11 @@ class XgvClient:
             self.control = False
             self.connections.clear()
             self._notice("heartbeat", f"no heartbeat from the XGV for {cfg.heartbeat_timeout_s} s")
+        if self.pose_refused is not None and now_s - self.pose_s > ODOMETER_GAP_S:
+            # refused fixes cost the stack its position: a fault. One refused fix among good
+            # ones is only counted (ojVehicleSim sends one now and then: a use-after-free race
+            # between its vehicle and Global Pose threads, vehicleSim.c / gpos.c)
+            self._notice("pose", self.pose_refused)
         out.extend((Topic.NOTICE, n) for n in self.notices)
         self.notices.clear()
         fresh, self.fresh = self.fresh, False
