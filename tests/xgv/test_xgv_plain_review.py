@@ -492,3 +492,22 @@ def test_no_resume_on_a_stale_standby(age_s: float, resumes: bool) -> None:
     deliver(client, ReportComponentStatus(primary_status=ComponentStatus.STANDBY), PD, 0.2)
     # the next is due 0.5 s after the first (retry_s): asked at 0.65 / 0.75
     assert any(isinstance(m, Resume) for m in sent(client, 0.2 + age_s)) is resumes
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("at_s", [3.0, 5.5])
+def test_an_isolated_garbage_fix_is_counted_not_a_fault(preset: str, at_s: float) -> None:
+    """Found in the interop drive (about one in four): ojVehicleSim now and then sends one
+    Global Pose of lat 90, lon 180 (a use-after-free race between its vehicle and Global Pose
+    threads); the fault it raised failed a healthy drive. Refused and counted, it never moves
+    the pose, and the drive ends as without it."""
+    def garbage(simulator: Any, m: Any, now_s: float) -> Any:
+        if isinstance(m, ReportGlobalPose) and at_s <= now_s < at_s + 0.01:
+            return msgspec.structs.replace(m, latitude_deg=90.0, longitude_deg=180.0)
+        return m
+
+    result = hooked_run("openjaus-wrench-drive.yaml", preset, garbage)
+    assert faults(result.summary) == []
+    assert judged(result.summary) == []
+    assert result.summary["odometer_m"] == pytest.approx(MOVE_M, abs=0.5)
+    assert float(result.trace[-1]["speed_mps"]) < 0.05
