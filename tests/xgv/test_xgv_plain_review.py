@@ -6,6 +6,7 @@ the vehicle itself holds (its PD's controller), never from the client's view of 
 
 from __future__ import annotations
 
+import itertools
 import math
 import random
 from collections.abc import Callable
@@ -356,7 +357,7 @@ def test_control_is_queried_about_once_a_second_while_held() -> None:
     queries = [t for t, m in out if isinstance(m, QueryComponentControl)]
     assert len(queries) == 5 and all(m.header.destination == PD for _, m in out
                                      if isinstance(m, QueryComponentControl))
-    gaps = [b - a for a, b in zip(queries, queries[1:], strict=False)]
+    gaps = [b - a for a, b in itertools.pairwise(queries)]
     assert all(g == pytest.approx(CONTROL_QUERY_PERIOD_S, abs=0.011) for g in gaps)
     assert mode(client, 5.06) == "drive-by-wire"
 

@@ -112,7 +112,7 @@ def local_radii_m(lat_deg: float) -> tuple[float, float]:
 class _Block:
     """Sums of the poses of one averaging block (``SpeedCheck``)."""
 
-    __slots__ = ("n", "rms2_m2", "speed_mps", "t0_s", "x_m", "y_m", "odometer_m")
+    __slots__ = ("n", "odometer_m", "rms2_m2", "speed_mps", "t0_s", "x_m", "y_m")
 
     def __init__(self, t0_s: float) -> None:
         self.t0_s = t0_s

@@ -129,8 +129,8 @@ from overdrive.vehicle.modes import (
     partial_override_bits,
     safety_device_bits,
 )
-from overdrive.vehicle.plant import World
 from overdrive.vehicle.plain_jaus import local_radii_m
+from overdrive.vehicle.plant import World
 from overdrive.vehicle.presets import VehicleParams
 from overdrive.vehicle.sim_node import PAUSE_DECEL_MPS2, VehicleSim
 
