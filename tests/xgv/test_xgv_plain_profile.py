@@ -37,13 +37,13 @@ from overdrive.scenario import Scenario, load_scenario
 from overdrive.sim import build_nodes, run_scenario
 from overdrive.vehicle.plain_jaus import (
     DEFAULT_POSITION_RMS_M,
-    EARTH_RADIUS_M,
     JUMP_NOISE_SIGMAS,
     MAX_ABS_LATITUDE_DEG,
     PLAUSIBLE_SPEED_MPS,
     STATUS_TIMEOUT_S,
     LocalFrame,
     PoseRefused,
+    local_radii_m,
     safety_mode_from_status,
 )
 from overdrive.vehicle.presets import PRESETS
@@ -73,8 +73,9 @@ JUMP_ALLOWED_M = JUMP_NOISE_SIGMAS * math.sqrt(2.0) * DEFAULT_POSITION_RMS_M   #
 def fix(north_m: float = 0.0, east_m: float = 0.0, yaw_rad: float = 0.0,
         lat0: float = LAT0, lon0: float = LON0, **fields: float | None) -> ReportGlobalPose:
     """A Global Pose ``north_m``/``east_m`` from (lat0, lon0) (the inverse of the projection)."""
-    lat = lat0 + math.degrees(north_m / EARTH_RADIUS_M)
-    lon = lon0 + math.degrees(east_m / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+    meridian_m, prime_vertical_m = local_radii_m(lat0)
+    lat = lat0 + math.degrees(north_m / meridian_m)
+    lon = lon0 + math.degrees(east_m / (prime_vertical_m * math.cos(math.radians(lat0))))
     values: dict[str, float | None] = {"latitude_deg": lat, "longitude_deg": lon,
                                        "yaw_rad": yaw_rad, "position_rms_m": 1.0, **fields}
     return ReportGlobalPose(**values)  # type: ignore[arg-type]
@@ -123,7 +124,7 @@ def test_the_antimeridian_is_a_few_metres_not_the_world() -> None:
     frame.project(fix(lat0=0.0, lon0=179.99999), 0.0)
     across = frame.project(fix(lat0=0.0, lon0=-179.99999), 1.0)
     assert across.x_m == pytest.approx(0.0, abs=1e-6)
-    assert across.y_m == pytest.approx(EARTH_RADIUS_M * math.radians(2e-5), rel=1e-6)
+    assert across.y_m == pytest.approx(local_radii_m(0.0)[1] * math.radians(2e-5), rel=1e-6)
 
 
 @pytest.mark.parametrize(("fields", "why"), [
@@ -266,12 +267,18 @@ def test_a_refused_fix_over_the_wire_never_moves_the_stacks_pose(bad: dict) -> N
     poses = [o[Topic.GPS_INS] for o in outs]
     assert all(isinstance(p, GpsIns) and (p.x_m, p.y_m) == (good.x_m, good.y_m) for p in poses)
     assert client.stats.rejected_reports == 5
+    # refused fixes are a fault once they cost the stack its position (ODOMETER_GAP_S
+    # without an accepted one), once per onset, with the reason; before that only counted
+    assert not [n for o in outs for t, n in o.items() if t == Topic.NOTICE]
+    outs = [report(client, 0.25 + 0.01 * i, pose=ReportGlobalPose(**{**base, **bad}))
+            for i in range(15)]
     faults = [n for o in outs for t, n in o.items() if t == Topic.NOTICE]
-    assert [f.code for f in faults] == ["xgv_pose"]      # once per onset, with the reason
+    assert [f.code for f in faults] == ["xgv_pose"]
     assert "Global Pose" in faults[0].reason
-    report(client, 0.3, pose=fix(1.5))                    # a good fix ends the onset
-    again = report(client, 0.31, pose=ReportGlobalPose(**{**base, **bad}))
-    assert [n.code for t, n in again.items() if t == Topic.NOTICE] == ["xgv_pose"]
+    report(client, 0.5, pose=fix(1.5))                    # a good fix ends the onset
+    again = [report(client, 0.51 + 0.01 * i, pose=ReportGlobalPose(**{**base, **bad}))
+             for i in range(30)]
+    assert [n.code for o in again for t, n in o.items() if t == Topic.NOTICE] == ["xgv_pose"]
 
 
 @pytest.mark.parametrize(("age_s", "published"), [(ODOMETER_GAP_S - 0.01, True),

@@ -26,7 +26,8 @@ control/ready-mode software pause (``VehicleSim.software_ready``).
 Frames: JAUS's vehicle frame is x forward, y right, z down, so positive curvature, yaw rate
 and steering effort turn right, as in the stack (no sign change). Local Pose is x along the
 stack's +x, y to its right (-y), yaw clockwise (-heading). Global Pose is a flat-earth
-projection of the local pose at ``origin_deg`` with local +x pointing north.
+projection of the local pose at ``origin_deg`` with local +x pointing north (WGS-84 radii at
+the origin: the exact inverse of ``plain_jaus.LocalFrame``).
 
 Nothing here reads a clock or touches a socket: ``receive(datagram, sender, now_s)`` and
 ``step(now_s)`` return the datagrams to send as ``(bytes, address)``. See docs/xgv.md.
@@ -128,6 +129,7 @@ from overdrive.vehicle.modes import (
     partial_override_bits,
     safety_device_bits,
 )
+from overdrive.vehicle.plain_jaus import local_radii_m
 from overdrive.vehicle.plant import World
 from overdrive.vehicle.presets import VehicleParams
 from overdrive.vehicle.sim_node import PAUSE_DECEL_MPS2, VehicleSim
@@ -159,7 +161,6 @@ PEER_TIMEOUT_S: Final = 5.0            # a peer silent this long (5 heartbeat pe
                                        # §2) loses its service connections and control, and its
                                        # id is free to come back from another address
 ORIGIN_DEG: Final = (37.2296, -80.4139)  # Global Pose datum (Blacksburg, VA); any point works
-EARTH_RADIUS_M: Final = 6_378_137.0    # WGS-84 equatorial radius (flat-earth projection)
 POSITION_RMS_M: Final = 0.02           # reported accuracy: the preset's RTK-grade GPS noise
 ATTITUDE_RMS_RAD: Final = 0.002
 DAYS_IN_TIMESTAMP: Final = 31          # reference §5: day of month, 1..31
@@ -967,8 +968,9 @@ class XgvSimulator:
                 return _present(ReportLocalPose, {"x_m": x, "y_m": -y, "z_m": 0.0, **attitude},
                                 presence or 0x01F3)
             lat0, lon0 = self.origin_deg
-            lat = lat0 + math.degrees(x / EARTH_RADIUS_M)
-            lon = lon0 + math.degrees(-y / (EARTH_RADIUS_M * math.cos(math.radians(lat0))))
+            meridian_m, prime_vertical_m = local_radii_m(lat0)   # plain_jaus's projection
+            lat = lat0 + math.degrees(x / meridian_m)
+            lon = lon0 + math.degrees(-y / (prime_vertical_m * math.cos(math.radians(lat0))))
             return _present(ReportGlobalPose, {"latitude_deg": lat, "longitude_deg": lon,
                                                "elevation_m": 0.0, **attitude}, presence or 0x01F3)
         if code == _WHEELS:

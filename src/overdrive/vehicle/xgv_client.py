@@ -57,6 +57,7 @@ from overdrive.jaus import (
     JausId,
     Message,
     Propulsion,
+    QueryComponentControl,
     QueryConfiguration,
     QueryField,
     QueryHeartbeatPulse,
@@ -138,6 +139,11 @@ REGISTRATION_GRACE_S: Final = 3.0    # a Reject this soon after the link came up
 REGISTRATION_SETTLE_S: Final = NM_HEARTBEAT_PERIOD_S   # and just after it asked, before
                                      # our answer reached its system tree (seen: a Reject
                                      # 30 ms in, after the query): one of our heartbeat periods
+CONTROL_QUERY_PERIOD_S: Final = 1.0  # Query Component Control while we hold control: a lost
+                                     # Reject is found within this (issue 19 review)
+CONTROL_QUERIES_UNANSWERED: Final = 3   # this many in a row unanswered: control lost (one
+                                     # lost datagram each way is not; a dead link is the
+                                     # heartbeat's, 1.5 s)
 MAX_WATCHERS: Final = 4              # components watching our status (the PD, the MPD)
 CLIENT_NAME: Final = "overdrive XGV client"   # Report Identification texts (ours)
 NODE_NAME: Final = "overdrive"
@@ -248,6 +254,8 @@ class XgvClient:
         self.pd_status: int | None = None      # plain: the PD's primary status, and when
         self.pd_status_s = -math.inf
         self.pose_s = -math.inf                # plain: when a Global Pose was last accepted
+        self.checked_pose_s = -math.inf        # and the last one the speed check took
+        self.pose_refused: str | None = None   # why the fixes since then were refused
         self.stats = ClientStats()
         # discovery: our node's node manager (component 1, instance 1)
         self.own_node_manager = JausId(cfg.client_id.subsystem, cfg.client_id.node, 1, 1)
@@ -262,6 +270,8 @@ class XgvClient:
         self.link_up = False
         self.control = False
         self.control_asked = False   # a Request Component Control not yet answered
+        self.control_queries = 0     # Query Component Control sent since the last Report
+        self.next_control_query_s = -math.inf
         self.next_query_s = -math.inf
         self.next_request_s = -math.inf
         self.next_resume_s = -math.inf
@@ -391,9 +401,13 @@ class XgvClient:
             self.control = m.response == ControlResponse.ACCEPTED
             if self.control:
                 self.next_resume_s = -math.inf
+                self.control_queries = 0
+                self.next_control_query_s = now_s + CONTROL_QUERY_PERIOD_S
+                self._told.discard("control")   # a later loss is a new onset
             else:
                 self._notice("control", f"{self.target} refused control (response {m.response})")
         elif isinstance(m, ReportComponentControl) and source == self.target:
+            self.control_queries = 0
             if self.control and m.controller != self.config.client_id:
                 self._notice("control", f"{self.target} reports {m.controller} in control")
                 self.control = False
@@ -427,9 +441,10 @@ class XgvClient:
                 self.pose = self.frame.project(m, now_s)
             except PoseRefused as exc:   # never used: the stack keeps the last good pose
                 self.stats.rejected_reports += 1
-                self._notice("pose", str(exc))
+                self.pose_refused = str(exc)   # a fault once it costs the stack its position
             else:
                 self._told.discard("pose")
+                self.pose_refused = None
                 self.pose_s = now_s
         elif isinstance(m, ReportComponentStatus) and source == self.pd:
             self.pd_status, self.pd_status_s = m.primary_status, now_s
@@ -516,6 +531,11 @@ class XgvClient:
             self.control = False
             self.connections.clear()
             self._notice("heartbeat", f"no heartbeat from the XGV for {cfg.heartbeat_timeout_s} s")
+        if self.pose_refused is not None and now_s - self.pose_s > ODOMETER_GAP_S:
+            # refused fixes cost the stack its position: a fault. One refused fix among good
+            # ones is only counted (ojVehicleSim sends one now and then: a use-after-free race
+            # between its vehicle and Global Pose threads, vehicleSim.c / gpos.c)
+            self._notice("pose", self.pose_refused)
         out.extend((Topic.NOTICE, n) for n in self.notices)
         self.notices.clear()
         fresh, self.fresh = self.fresh, False
@@ -530,7 +550,8 @@ class XgvClient:
         if self.plain and now_s - self.pose_s > ODOMETER_GAP_S:
             pose = None   # refused or missing fixes: no stale position (the move server stops)
         self._odometer(pose)
-        if self.plain and pose is not None and self._speed_reads_low(now_s, pose, out):
+        if (self.plain and pose is not None and self.pose_s != self.checked_pose_s
+                and self._speed_reads_low(now_s, pose, out)):
             return out
         pitch = (pose.pitch_rad or 0.0) if pose is not None else 0.0
         roll = (pose.roll_rad or 0.0) if pose is not None else 0.0
@@ -562,6 +583,7 @@ class XgvClient:
         """Plain: Velocity State checked against the Global Pose (``SpeedCheck``); once it
         reads low, a fault and no more sensors (the speed server's watchdog e-stops), as a
         lost heartbeat."""
+        self.checked_pose_s = self.pose_s   # each fix once (the check averages fixes)
         reason = self.speed_check.check(now_s, pose.x_m or 0.0, pose.y_m or 0.0,
                                         self.odometer_m, pose.position_rms_m or 0.0,
                                         self.speed_mps)
@@ -674,13 +696,16 @@ class XgvClient:
                         presence_vector=_every_field(code)), component,
                         service_connection=True))
                     self.next_create_s[code] = now_s + cfg.retry_s
+            if self.control and now_s >= self.next_control_query_s:
+                messages.extend(self._query_control(now_s))
             if not self.control and now_s >= self.next_request_s:
                 messages.append(self._to(RequestComponentControl(authority=cfg.authority),
                                          self.target))
                 self.control_asked = True
                 self.next_request_s = now_s + cfg.retry_s
         if self.control:
-            paused = (self.pd_status == ComponentStatus.STANDBY if self.plain
+            paused = (self.pd_status == ComponentStatus.STANDBY
+                      and now_s - self.pd_status_s <= STATUS_TIMEOUT_S if self.plain
                       else self.mode is None or self.mode.ready_mode != ReadyMode.READY)
             if paused and now_s >= self.next_resume_s:
                 messages.append(self._to(Resume(), self.target))
@@ -694,6 +719,19 @@ class XgvClient:
         except JausEncodeError:   # cannot happen with validated inputs; never crash the stack
             self._notice("encode", "a command could not be encoded")
             return []
+
+    def _query_control(self, now_s: float) -> list[Message]:
+        """Query Component Control once a period while we hold control (a lost Reject would
+        leave us believing it); ``CONTROL_QUERIES_UNANSWERED`` unanswered: control lost."""
+        if self.control_queries >= CONTROL_QUERIES_UNANSWERED:
+            self._notice("control", f"{self.target} answered none of {self.control_queries} "
+                                    f"Query Component Control: control taken as lost")
+            self.control = False
+            self.control_queries = 0
+            return []
+        self.control_queries += 1
+        self.next_control_query_s = now_s + CONTROL_QUERY_PERIOD_S
+        return [self._to(QueryComponentControl(), self.target)]
 
     def release(self) -> list[bytes]:
         """Datagrams giving control back (the XGV then pauses)."""
