@@ -19,7 +19,7 @@ from typing import Literal
 
 import msgspec
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2   # 2: issue 16 (Radar.bearing_rad and seq, SpeedState.direction_hold)
 """Bumped on any incompatible change to a message below; carried by serialized bus frames."""
 
 
