@@ -122,20 +122,31 @@ def test_fault_sweep_has_no_avoidable_violation(fault_sweep) -> None:
     assert len(report["unavoidable"]) == len(report["violating_runs"])
 
 
-@pytest.mark.parametrize(("fault", "rules", "kinds", "engine", "unavoidable"), [
-    ("brake_stuck", ["authorization"], {"estop", "fault"}, "off", True),
-    ("brake_stuck", ["authorization", "contact"], {"estop", "fault"}, "off", True),
-    ("brake_stuck", ["authorization"], {"estop"}, "off", False),          # no fault reported
-    ("brake_stuck", ["authorization"], {"estop", "fault"}, "running", False),   # engine not cut
-    ("brake_stuck", ["authorization"], {"fault"}, "off", False),          # no emergency stop
-    ("brake_stuck", ["speed"], {"estop", "fault"}, "off", False),         # a rule it could meet
-    ("throttle_stuck", ["authorization"], {"estop", "fault"}, "off", False),
-    (None, ["authorization"], {"estop", "fault"}, "off", False),
-    ("brake_stuck", [], {"estop", "fault"}, "off", False),                # nothing to excuse
-])
-def test_a_violation_is_unavoidable_only_after_the_required_reaction(fault, rules, kinds, engine,
-                                                                    unavoidable) -> None:
-    from overdrive.sweep import unavoidable_cause
+ESTOP = {"kind": "estop", "source": "speed"}
+BRAKE_STUCK = {"kind": "fault", "source": "speed", "code": "1133"}
 
-    summary = {"events": [{"kind": k} for k in sorted(kinds)], "final": {"engine": engine}}
+
+@pytest.mark.parametrize(("fault", "rules", "events", "engine", "unavoidable"), [
+    ("brake_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "off", True),
+    ("brake_stuck", ["authorization", "contact"], [ESTOP, BRAKE_STUCK], "off", True),
+    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "code": "1136"}], "off", True),
+    ("brake_stuck", ["authorization"], [ESTOP], "off", False),                 # no fault reported
+    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "code": "1131"}], "off", False),
+    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "source": "move"}], "off", False),
+    ("brake_stuck", ["authorization"], [{**ESTOP, "source": "move"}, BRAKE_STUCK], "off", False),
+    ("brake_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "running", False),   # engine not cut
+    ("brake_stuck", ["authorization"], [BRAKE_STUCK], "off", False),          # no emergency stop
+    ("brake_stuck", ["speed"], [ESTOP, BRAKE_STUCK], "off", False),           # a rule it could meet
+    ("throttle_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "off", False),
+    (None, ["authorization"], [ESTOP, BRAKE_STUCK], "off", False),
+    ("brake_stuck", [], [ESTOP, BRAKE_STUCK], "off", False),                  # nothing to excuse
+])
+def test_a_violation_is_unavoidable_only_after_the_required_reaction(fault, rules, events, engine,
+                                                                    unavoidable) -> None:
+    from overdrive.safety.actuators import ActuatorFault
+    from overdrive.sweep import BRAKE_LOST_CODES, unavoidable_cause
+
+    assert {str(int(ActuatorFault.BRAKE_NOT_APPLYING)),
+                                str(int(ActuatorFault.BRAKE_FAILED))} == BRAKE_LOST_CODES
+    summary = {"events": events, "final": {"engine": engine}}
     assert (unavoidable_cause(fault, rules, summary) is not None) is unavoidable

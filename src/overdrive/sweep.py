@@ -123,13 +123,23 @@ unavoidable only if the stack reacted as it must (an emergency stop, the engine 
 notice); otherwise, and for any other rule, it is an avoidable violation."""
 
 
+BRAKE_LOST_CODES = frozenset({"1133", "1136"})
+"""``safety.actuators.ActuatorFault`` BRAKE_NOT_APPLYING and BRAKE_FAILED (kept as strings: the
+sweep reads summary.json events, whose codes are strings)."""
+
+
 def unavoidable_cause(fault: str | None, rules: list[str], summary: dict[str, Any]) -> str | None:
-    """Why a violating run's violations were physically unavoidable, or None when they were not."""
+    """Why a violating run's violations were physically unavoidable, or None when they were not:
+    the drawn fault's own reaction must be in the events (the speed server's emergency stop and
+    its fault saying the brake does not apply or failed) and the engine off at the end."""
     allowed = UNAVOIDABLE.get(fault or "")
     if not rules or allowed is None or not set(rules) <= allowed:
         return None
-    kinds = {e["kind"] for e in summary["events"]}
-    if not {"estop", "fault"} <= kinds or summary["final"].get("engine") != "off":
+    events = summary["events"]
+    estop = any(e["kind"] == "estop" and e.get("source") == "speed" for e in events)
+    brake_fault = any(e["kind"] == "fault" and e.get("source") == "speed"
+                      and str(e.get("code")) in BRAKE_LOST_CODES for e in events)
+    if not (estop and brake_fault) or summary["final"].get("engine") != "off":
         return None
     return f"{fault}: no brakes; emergency stop raised and engine cut, the vehicle coasted"
 
