@@ -19,9 +19,9 @@ from tests.conftest import PRESET_NAMES
 
 
 def run(vehicle: str, events: list[dict], world: dict | None = None, duration_s: float = 30.0,
-        start: str = "ready") -> Any:
+        start: str = "ready", seed: int = 7) -> Any:
     data = {"name": "redteam-16", "vehicle": vehicle, "start": start, "duration_s": duration_s,
-            "seed": 7, "world": world or {}, "events": events}
+            "seed": seed, "world": world or {}, "events": events}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
 
@@ -85,9 +85,9 @@ def test_all_motion_sensors_frozen_at_cruise_stop_without_overspeed(preset: str)
 
 @pytest.mark.xfail(strict=True, reason=(
     "issue 16 red team: brakes at 30 % effectiveness from before the MOVE (40 m at 8 m/s) on a 10 % "
-    "downhill: the launch brake probe does not catch it, fault 1134 comes only at 6.1-6.5 s at "
+    "downhill: the launch brake probe is off by default, fault 1134 comes only at 6.1-6.5 s at "
     "cruise and the vehicle passes the end by 2.96 m (escape-hybrid) / 1.08 m (ranger-6x6); a slower "
-    "cruise would have stopped in time (the same brake on the flat, or at 50 % downhill, stops)"))
+    "cruise would have stopped in time (with the probe on: 39.3 / 39.2 m, inside)"))
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_weak_brake_on_a_downhill_stays_inside_the_authorization(preset: str) -> None:
     result = run(preset, duration_s=14.0, world={"grade_percent": -10}, events=[
@@ -100,7 +100,7 @@ def test_weak_brake_on_a_downhill_stays_inside_the_authorization(preset: str) ->
     "draws 0.1-3.0) for 8 s on a healthy vehicle with healthy wheel speed and IMU: the speed "
     "server reads it as a brake giving 16-22 % of its deceleration (faults 1134, then 1136), cuts "
     "the engine and e-stops; the 60 m MOVE ends at 9.75 m (escape-hybrid; at 3 m sigma 5.2-5.3 m "
-    "on both presets)"))
+    "on both presets; 6.48 m ranger-6x6 at 1.5 m)"))
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_noisy_gps_does_not_stop_a_healthy_vehicle(preset: str) -> None:
     result = run(preset, duration_s=22.0, events=[
@@ -111,14 +111,42 @@ def test_noisy_gps_does_not_stop_a_healthy_vehicle(preset: str) -> None:
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "issue 16 red team, false alarm: GPS/INS noise of 3 m (1 sigma) at standstill just before a "
-    "30 m MOVE, healthy vehicle: faults 1134 and 1136 (brake failed) at 0.98-1.14 s, engine cut, "
-    "e-stop; the vehicle never moves (0.00 m of 30 m), and stays stopped after the noise ends"))
-def test_noisy_gps_at_standstill_does_not_keep_a_healthy_vehicle_from_starting() -> None:
-    result = run("escape-hybrid", duration_s=20.0, events=[
-        sensor(0.3, "gps", "noise", for_s=5.0, sigma=3.0), move(0.5, 30, 5)])
+    "issue 16 red team, false alarm: GPS/INS noise of 1 m / 1 m/s (1 sigma; 0.5 m does it too, at "
+    "2.8 s) for 5 s on a healthy vehicle at standstill: the speed server reads the noisy GPS speed "
+    "as a brake that does not hold (fault 1134 at 1.32 s, 1136 at 1.53 s), cuts the engine and "
+    "e-stops, both presets; the vehicle never moves (0.00 m of a 30 m MOVE) and stays stopped after "
+    "the noise ends"))
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_noisy_gps_at_standstill_does_not_cut_the_engine_of_a_healthy_vehicle(preset: str) -> None:
+    result = run(preset, duration_s=8.0, events=[
+        sensor(0.3, "gps", "noise", for_s=5.0, sigma=1.0), move(0.5, 30, 5)])
     assert estops(result) == []
+    assert result.trace[-1]["engine"] == "running"
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "issue 16 red team, false alarm: GPS/INS noise of 0.1 m / 0.1 m/s (the sweep's smallest) at "
+    "standstill (seed 1; 3 of seeds 1-8 are rejected): the move server takes the noisy GPS speed over the wheel speed (0) and rejects the "
+    "MOVE ('vehicle still moving reverse at 0.12 m/s: MOVE needs a standstill first') and the "
+    "driving module raises 'hard_brake' notices for 0.15-0.26 m/s of GPS speed noise; the healthy "
+    "stopped vehicle does not drive the MOVE (0.00 m of 30 m; the scenario sends it once)"))
+def test_slight_gps_noise_at_standstill_does_not_reject_a_move() -> None:
+    result = run("escape-hybrid", duration_s=12.0, seed=1, events=[
+        sensor(0.3, "gps", "noise", for_s=1.0, sigma=0.1), move(0.5, 30, 5)])
+    assert not [e for e in result.summary["events"] if e["kind"] == "rejected"]
     assert final_x_m(result) > 29.0
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "issue 16 red team: case 6 as shipped: brakes at 20 % effectiveness from the start, MOVE 40 m "
+    "at 8 m/s: the launch brake probe is off by default (ActuatorMonitorConfig.probe_enabled=False), "
+    "fault 1134 comes only at 6.8-7.0 s at cruise, and the vehicle passes the end by 4.49 m "
+    "(escape-hybrid) / 4.11 m (ranger-6x6); with the probe on it stops inside (39.7 / 39.1 m)"))
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_brakes_at_20_percent_from_the_start_as_shipped_stay_inside_a_40_m_move(preset: str) -> None:
+    result = run(preset, duration_s=14.0, events=[
+        actuator(0.2, brake={"effectiveness": 0.2}), move(0.5, 40, 8)])
+    assert result.summary["violations"] == []
 
 
 # --------------------------------------------------------------------------- attacks that held
@@ -135,7 +163,7 @@ def test_frozen_gps_then_stuck_throttle_at_cruise_stops_inside_the_authorization
 
 
 @pytest.mark.parametrize("at_s", [0.55, 0.9])
-def test_throttle_stuck_during_the_launch_brake_probe_downhill_barely_moves(at_s: float) -> None:
+def test_throttle_stuck_at_launch_downhill_barely_moves(at_s: float) -> None:
     result = run("escape-hybrid", duration_s=6.0, world={"grade_percent": -15}, events=[
         move(0.5, 15, 3), actuator(at_s, throttle={"stuck": True})])
     assert result.summary["violations"] == []
