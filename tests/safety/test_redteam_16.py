@@ -57,16 +57,21 @@ def estops(result: Any) -> list[dict]:
 # --------------------------------------------------------------------------- defects found
 
 @pytest.mark.xfail(strict=True, reason=(
-    "issue 16 red team: radar silent (t=3 s) and GPS/INS frozen (t=3.5 s, or frozen first at 3 s "
-    "and radar silent at 3.5 s) at 8 m/s, obstacle at 60 m seen before the radar fell silent: "
-    "faults 1151 and 1101 are raised but the vehicle drives on at 7.98 m/s and hits the obstacle "
-    "(t=10.4 s), both presets; each fault alone stops at 51-53 m"))
-@pytest.mark.parametrize("preset", PRESET_NAMES)
-def test_silent_radar_and_frozen_gps_together_still_stop_before_a_seen_obstacle(preset: str) -> None:
-    result = run(preset, duration_s=14.0, world={"obstacles": [{"x_m": 60, "y_m": 0.4}]}, events=[
-        move(0.5, 100, 8), sensor(3.0, "radar", "dropout"), sensor(3.5, "gps", "freeze")])
+    "issue 16 red team: radar silent (t=3 s) or frozen, and GPS/INS frozen (t=3.5 s; also frozen "
+    "first at 3 s and radar silent at 3.5 s): faults 1151/1152 and 1101 are raised, but the verified "
+    "clear distance is never used up (the pose is frozen) and the vehicle drives into the obstacle "
+    "it saw before: at 60 m, contact at 7.98 m/s (t=10.4 s), both presets, silent or frozen; dead "
+    "ahead at 30 m at 3 m/s, contact at 2.99 m/s. Each fault alone stops at 51-53 m"))
+@pytest.mark.parametrize(("preset", "radar_fault", "speed_mps", "obstacle"), [
+    *[(preset, "dropout", 8.0, {"x_m": 60, "y_m": 0.4}) for preset in PRESET_NAMES],
+    ("escape-hybrid", "freeze", 8.0, {"x_m": 60, "y_m": 0.4}),
+    ("escape-hybrid", "dropout", 3.0, {"x_m": 30, "y_m": 0.0})])
+def test_bad_radar_and_frozen_gps_together_still_stop_before_a_seen_obstacle(
+        preset: str, radar_fault: str, speed_mps: float, obstacle: dict) -> None:
+    result = run(preset, duration_s=14.0, world={"obstacles": [obstacle]}, events=[
+        move(0.5, 100, speed_mps), sensor(3.0, "radar", radar_fault), sensor(3.5, "gps", "freeze")])
     assert "contact" not in rules_of(result), result.summary["violations"]
-    assert final_x_m(result) < 59.0
+    assert final_x_m(result) < obstacle["x_m"] - 1.0
 
 
 @pytest.mark.xfail(strict=True, reason=(
