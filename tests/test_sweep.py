@@ -136,7 +136,8 @@ BRAKE_STUCK = {"kind": "fault", "source": "speed", "code": "1133"}
     ("brake_stuck", ["authorization"], [{**ESTOP, "source": "move"}, BRAKE_STUCK], "off", False),
     ("brake_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "running", False),   # engine not cut
     ("brake_stuck", ["authorization"], [BRAKE_STUCK], "off", False),          # no emergency stop
-    ("brake_stuck", ["speed"], [ESTOP, BRAKE_STUCK], "off", False),           # a rule it could meet
+    ("brake_stuck", ["speed"], [ESTOP, BRAKE_STUCK], "off", True),            # coasting downhill
+    ("brake_stuck", ["direction"], [ESTOP, BRAKE_STUCK], "off", False),       # a rule it could meet
     ("throttle_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "off", False),
     (None, ["authorization"], [ESTOP, BRAKE_STUCK], "off", False),
     ("brake_stuck", [], [ESTOP, BRAKE_STUCK], "off", False),                  # nothing to excuse

@@ -116,9 +116,11 @@ def sample_scenario(data: dict[str, Any], run: int, base_seed: int, sweep: Sweep
     return out
 
 
-UNAVOIDABLE: dict[str, frozenset[str]] = {"brake_stuck": frozenset({"authorization", "contact"})}
+UNAVOIDABLE: dict[str, frozenset[str]] = {
+    "brake_stuck": frozenset({"authorization", "contact", "speed"})}
 """Drawn faults after which these rules may be broken whatever the stack does (issue 16): with
-the brakes stuck released only the engine cut and coasting remain. Such a run counts as
+the brakes stuck released only the engine cut and coasting remain (downhill, gravity speeds the
+coasting vehicle past its limit: the red team's sweep, runs 50 and 68 of seed 91716). Such a run counts as
 unavoidable only if the stack reacted as it must (an emergency stop, the engine cut, a fault
 notice); otherwise, and for any other rule, it is an avoidable violation."""
 
