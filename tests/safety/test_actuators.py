@@ -119,9 +119,10 @@ def test_brake_response_not_weak_before_verified() -> None:
     assert not r.verified
 
 
-def test_brake_probe_is_off_by_default() -> None:
-    probe, response = BrakeProbe(ActuatorMonitorConfig()), BrakeResponse(CFG)
+def test_brake_probe_can_be_switched_off() -> None:
+    probe, response = BrakeProbe(ActuatorMonitorConfig(probe_enabled=False)), BrakeResponse(CFG)
     assert probe.step(DT, True, True, response, 0.0) is None and probe.phase == "idle"
+    assert ActuatorMonitorConfig().probe_enabled, "on by default (issue 16 case 6)"
 
 
 def test_brake_probe_phases() -> None:

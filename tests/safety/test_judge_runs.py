@@ -356,7 +356,7 @@ FAULTS = [
     pytest.param([sensor("radar", "dropout", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-lost"),
     pytest.param([sensor("radar", "freeze", at_s=0.2, for_s=40.0)], OBSTACLE_45, id="radar-frozen"),
     pytest.param([actuator(brake={"effectiveness": 0.2})], {}, id="brake-weak-20",
-                 marks=issue(16, "weak brakes are learned only once braking hard")),
+                 ),
     pytest.param([actuator(at_s=5.0, throttle={"stuck": True})], {}, id="throttle-stuck-at-cruise"),
 ]
 

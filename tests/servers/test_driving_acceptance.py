@@ -51,7 +51,8 @@ def test_streamed_authorizations_hold_the_limit(preset):
     stream = [{"at_s": round(1 + 0.25 * i, 2), "advance": {"source": "lidar", "distance_m": 30}}
               for i in range(60)]
     result = run(preset, stream + LIMIT, duration_s=16.0)
-    after_ramp = [abs(float(r["speed_mps"])) for r in result.trace if 8.0 <= float(r["t_s"]) <= 16]
+    # from 9 s: the launch includes the once-a-run brake probe (issue 16), ~1.5 s
+    after_ramp = [abs(float(r["speed_mps"])) for r in result.trace if 9.0 <= float(r["t_s"]) <= 16]
     assert after_ramp
     assert max(abs(v - 8.0) for v in after_ramp) <= 0.2
 
