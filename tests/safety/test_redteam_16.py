@@ -88,11 +88,6 @@ def test_all_motion_sensors_frozen_at_cruise_stop_without_overspeed(preset: str)
     assert peak_speed_mps(result) < 8.3
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 16 red team: brakes at 30 % effectiveness from before the MOVE (40 m at 8 m/s) on a 10 % "
-    "downhill: the launch brake probe is off by default, fault 1134 comes only at 6.1-6.5 s at "
-    "cruise and the vehicle passes the end by 2.96 m (escape-hybrid) / 1.08 m (ranger-6x6); a slower "
-    "cruise would have stopped in time (with the probe on: 39.3 / 39.2 m, inside)"))
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_weak_brake_on_a_downhill_stays_inside_the_authorization(preset: str) -> None:
     result = run(preset, duration_s=14.0, world={"grade_percent": -10}, events=[
@@ -144,11 +139,6 @@ def test_slight_gps_noise_at_standstill_does_not_reject_a_move() -> None:
     assert final_x_m(result) > 29.0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 16 red team: case 6 as shipped: brakes at 20 % effectiveness from the start, MOVE 40 m "
-    "at 8 m/s: the launch brake probe is off by default (ActuatorMonitorConfig.probe_enabled=False), "
-    "fault 1134 comes only at 6.8-7.0 s at cruise, and the vehicle passes the end by 4.49 m "
-    "(escape-hybrid) / 4.11 m (ranger-6x6); with the probe on it stops inside (39.7 / 39.1 m)"))
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_brakes_at_20_percent_from_the_start_as_shipped_stay_inside_a_40_m_move(preset: str) -> None:
     result = run(preset, duration_s=14.0, events=[
