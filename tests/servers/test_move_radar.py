@@ -298,3 +298,19 @@ def test_a_second_reverse_of_a_stream_continues_along_the_track_after_a_standsti
     assert second.distance_m == 12.0, note
     over, _ = c.clamp_reverse(reverse(30.0), gps(x=16.0, odo=24.0))
     assert over.distance_m == pytest.approx(20.0 - 4.0 + CFG.reverse_blind_m, abs=0.6)
+
+
+def test_forward_travel_after_a_reverse_is_tracked_from_where_it_began() -> None:
+    """REVERSE 1 m (nothing verified), stand (noise reads as forward), MOVE 20 m, REVERSE 25 m:
+    the track covers the 20 m from the start of the MOVE (scenario reverse-unreported-obstacle)."""
+    c = corridor()
+    c.record_trail(gps(x=0.0, odo=0.0, v=0.06), 1)           # noise at the ready start
+    c.clamp_reverse(reverse(12.0), gps())
+    for i in range(1, 51):
+        c.record_trail(gps(x=-0.02 * i, odo=0.02 * i, v=-1.0), -1)
+    for _ in range(50):
+        c.record_trail(gps(x=-1.0, odo=1.0, v=0.06), 1)
+    for i in range(1, 1001):
+        c.record_trail(gps(x=-1.0 + 0.02 * i, odo=1.0 + 0.02 * i, v=2.0), 1)
+    clamped, _ = c.clamp_reverse(reverse(25.0), gps(x=19.0, odo=21.0))
+    assert clamped.distance_m == pytest.approx(20.0 + CFG.reverse_blind_m, abs=0.1)

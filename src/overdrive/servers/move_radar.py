@@ -174,19 +174,22 @@ class RadarCorridor:
         travel of ``reverse_blind_m`` ends the current reverse (its anchor)."""
         odo = gps.odometer_m
         last, self.last_odometer_m = self.last_odometer_m, odo
+        advanced_m = max(odo - last, 0.0) if last is not None else 0.0
         if direction <= 0:
+            if advanced_m > 0.0:
+                self.trail_odometer_m = None   # reversed: the next forward travel starts a point
             return
         # only forward travel counts: the odometer also counts reversing, and GPS speed noise
         # at a standstill reads as "forward" (a point where the vehicle stands after a reverse
-        # would break the track it reverses along)
-        advanced_m = max(odo - last, 0.0) if last is not None else 0.0
+        # would cut the track the next REVERSE of the stream backs along)
         self.forward_odometer_m += advanced_m
         if self.reverse_anchor is not None:
             self.forward_since_anchor_m += advanced_m
             if self.forward_since_anchor_m >= self.config.reverse_blind_m:
                 self.reverse_anchor = None
-        if self.trail_odometer_m is not None and self.forward_odometer_m - \
-                self.trail_odometer_m < self.config.trail_spacing_m and self.trail:
+        if self.trail and (advanced_m == 0.0 if self.trail_odometer_m is None else
+                           self.forward_odometer_m - self.trail_odometer_m
+                           < self.config.trail_spacing_m):
             return
         self.trail_odometer_m = self.forward_odometer_m
         rear = self.params.rear_overhang_m
