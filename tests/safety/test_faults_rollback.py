@@ -13,6 +13,11 @@ Every run must end with no violation of the judge (direction, contact, ...) and 
 
 Healthy vehicles must climb (no false alarm); flat or downhill runs must be unchanged by the
 hold (same trace with the hold switched off).
+
+Reversing has no radar (issue 16, ``servers/move_radar.py``): a REVERSE is clamped to 1.5 m/s
+and to the vehicle's own forward track plus 1 m. Every reversing run therefore first drives
+forward ``TRACK_M`` (downhill when the reverse is uphill) and reverses along that track; on
+30 %, where no MOVE may go down the hill, it reverses up it within the blind metre.
 """
 
 from __future__ import annotations
@@ -24,12 +29,28 @@ import pytest
 from overdrive.scenario import parse_scenario
 from overdrive.servers import speed as speed_module
 from overdrive.servers.direction_hold import FREE, DirectionFault
+from overdrive.servers.move_radar import RadarConfig
 from overdrive.sim import run_scenario
 from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 FAULT_CODES = {str(int(c)) for c in DirectionFault}
 DISTANCE_M = 12.0
+REVERSE_MPS = 1.5   # move_radar's reverse_max_speed_mps (policy: no rear sensor)
+TRACK_M = 20.0      # forward track laid before reversing: the 4 m + 12 m of the longest
+                    # reversing run, with room for the MOVE's stop margin
+TRACK_S = 20.0      # the forward MOVE is done by then on both presets, grades up to 30 %
+TRACK_MAX_GRADE_PCT = 25.0   # steeper, a MOVE down the hill is infeasible (the move server's
+                             # braking plan, 0.6 x 4.0 m/s^2 at friction 0.8, holds 25.3 %):
+                             # no track, a REVERSE up it gets the blind metre only
+BLIND_M = RadarConfig().reverse_blind_m
+
+
+def measured_m(kind: str, grade_pct: float, start: str) -> tuple[float, float]:
+    """(first, measured) distances of a hill start: within the blind metre without a track."""
+    if kind == "reverse" and grade_pct > TRACK_MAX_GRADE_PCT:
+        return (0.3, BLIND_M - 0.3) if start == "stop" else (0.0, BLIND_M)
+    return 4.0, DISTANCE_M
 
 
 def run(vehicle: str, grade: Any, events: list[dict], duration_s: float = 20.0,
@@ -38,6 +59,19 @@ def run(vehicle: str, grade: Any, events: list[dict], duration_s: float = 20.0,
             "world": {"grade_percent": grade, "obstacles": obstacles or []},
             "events": events}
     return run_scenario(parse_scenario(data), None)
+
+
+def track_first(kind: str, grade_pct: float = 0.0) -> tuple[list[dict], float]:
+    """Events that lay the forward track a REVERSE may back along (none for a MOVE, or where
+    the track cannot be driven), and the time from which the run proper starts."""
+    if kind != "reverse" or grade_pct > TRACK_MAX_GRADE_PCT:
+        return [], 0.0
+    return [{"at_s": 0.5, "move": {"distance_m": TRACK_M, "maxspeed_mps": 2.5,
+                                   "curvature_1pm": 0}}], TRACK_S
+
+
+def shifted(events: list[dict], t0_s: float) -> list[dict]:
+    return [{**e, "at_s": e["at_s"] + t0_s} for e in events]
 
 
 def hill_start(vehicle: str, grade_pct: float, kind: str = "move", effectiveness: float = 1.0,
@@ -50,15 +84,22 @@ def hill_start(vehicle: str, grade_pct: float, kind: str = "move", effectiveness
     road = grade_pct if kind == "move" else -grade_pct
     weak = [] if effectiveness == 1.0 else [
         {"actuator": {"throttle": {"effectiveness": effectiveness}}}]
-    move = {kind: {"distance_m": DISTANCE_M, "maxspeed_mps": 2.5, "curvature_1pm": 0}}
+    speed_mps = 2.5 if kind == "move" else REVERSE_MPS
+    first_m, distance_m = measured_m(kind, grade_pct, start)
+    move = {kind: {"distance_m": distance_m, "maxspeed_mps": speed_mps, "curvature_1pm": 0}}
+    # a REVERSE from ready: "ready" after the forward track
+    track, t0_s = track_first(kind, grade_pct)
     if start == "ready":
         events = [{"at_s": 0.1, **w} for w in weak] + [{"at_s": 0.5, **move}]
-        return run(vehicle, road, events, duration_s + 0.5, obstacles=obstacles), 0.5
-    first = {kind: {"distance_m": 4, "maxspeed_mps": 2, "curvature_1pm": 0}}
+        return run(vehicle, road, track + shifted(events, t0_s), t0_s + duration_s + 0.5,
+                   obstacles=obstacles), t0_s + 0.5
+    first = {kind: {"distance_m": first_m, "maxspeed_mps": min(2.0, speed_mps),
+                    "curvature_1pm": 0}}
     # the first MOVE is done by 20 s even after a downshift (5 s runwait) on 30 %
     events = [{"at_s": 0.5, **first}] + [{"at_s": 19.0, **w} for w in weak] + [
         {"at_s": 20.0, **move}]
-    return run(vehicle, road, events, duration_s + 20.0, obstacles=obstacles), 20.0
+    return run(vehicle, road, track + shifted(events, t0_s), t0_s + duration_s + 20.0,
+               obstacles=obstacles), t0_s + 20.0
 
 
 def direction_faults(result: Any) -> list[dict]:
@@ -80,7 +121,7 @@ def progress_m(result: Any, issued_s: float, reverse: bool) -> tuple[float, floa
     return sign * (float(rows[-1]["x_m"]) - x0), back
 
 
-def outcome(result: Any, issued_s: float, reverse: bool) -> str:
+def outcome(result: Any, issued_s: float, reverse: bool, distance_m: float = DISTANCE_M) -> str:
     """Check the run against the module docstring's outcomes; return which one it was."""
     assert result.summary["violations"] == [], result.summary["violations"]
     done_m, back_m = progress_m(result, issued_s, reverse)
@@ -97,7 +138,7 @@ def outcome(result: Any, issued_s: float, reverse: bool) -> str:
         assert float(last["throttle_pct"]) < 1.0
         return "held"
     if phase == "idle":
-        assert done_m >= DISTANCE_M - 0.6, done_m
+        assert done_m >= distance_m - min(0.6, 0.3 * distance_m), done_m
         return "climbed"
     assert phase in ("moving", "starting", "shifting"), phase
     return "underway"
@@ -121,7 +162,8 @@ def test_a_weak_throttle_hill_start_climbs_or_is_held(preset: str, grade_pct: fl
 def test_reversing_up_a_hill_with_a_weak_throttle_never_rolls_forward(
         preset: str, grade_pct: float, effectiveness: float) -> None:
     result, issued_s = hill_start(preset, grade_pct, "reverse", effectiveness)
-    outcome(result, issued_s, reverse=True)
+    outcome(result, issued_s, reverse=True,
+            distance_m=measured_m("reverse", grade_pct, "ready")[1])
 
 
 def test_the_issue_case_is_held_with_a_fault_and_the_move_failed() -> None:
@@ -204,7 +246,8 @@ HEALTHY = [(p, g, k) for p in PRESET_NAMES for g in (5, 10, 15, 20, 30) for k in
 def test_a_healthy_hill_start_completes_without_a_fault(preset: str, grade_pct: float, kind: str,
                                                         start: str) -> None:
     result, issued_s = hill_start(preset, grade_pct, kind, 1.0, start, duration_s=30.0)
-    assert outcome(result, issued_s, reverse=kind == "reverse") == "climbed"
+    assert outcome(result, issued_s, reverse=kind == "reverse",
+                   distance_m=measured_m(kind, grade_pct, start)[1]) == "climbed"
     kinds = {e["kind"] for e in result.summary["events"]}
     assert "move_failed" not in kinds
 
@@ -265,12 +308,17 @@ def without_hold(monkeypatch) -> None:
 def test_flat_runs_are_unchanged_by_the_hold(preset: str, kind: str, monkeypatch) -> None:
     """Flat ground: the hold never acts (the same trace without it; the auto-hold's parking
     brake holds a vehicle the standstill brake already holds)."""
-    events = [{"at_s": 0.5, kind: {"distance_m": 15, "maxspeed_mps": 3, "curvature_1pm": 0}}]
-    with_hold = run(preset, 0, events, duration_s=15.0)
+    track, t0_s = track_first(kind)
+    speed_mps = 3.0 if kind == "move" else REVERSE_MPS
+    events = track + shifted([{"at_s": 0.5, kind: {"distance_m": 15, "maxspeed_mps": speed_mps,
+                                                   "curvature_1pm": 0}}], t0_s)
+    duration_s = 15.0 if kind == "move" else t0_s + 15.0
+    with_hold = run(preset, 0, events, duration_s=duration_s)
     without_hold(monkeypatch)
-    without = run(preset, 0, events, duration_s=15.0)
+    without = run(preset, 0, events, duration_s=duration_s)
     assert with_hold.summary["violations"] == []
-    assert abs(float(with_hold.trace[-1]["x_m"])) > 10.0    # driven, not refused
+    x0 = float(next(r["x_m"] for r in with_hold.trace if float(r["t_s"]) >= t0_s))
+    assert abs(float(with_hold.trace[-1]["x_m"]) - x0) > 10.0    # driven, not refused
     fields = ("x_m", "speed_mps", "throttle_cmd_pct", "brake_cmd_pct", "gear")
     assert [[r[f] for f in fields] for r in with_hold.trace] == \
         [[r[f] for f in fields] for r in without.trace]
@@ -283,17 +331,23 @@ def test_downhill_runs_drive_as_without_the_hold(preset: str, grade: float, kind
     """The gear pointing down the road: no hill-start hold; only the auto-hold's parking brake
     at the ready start (it stops a first-tick creep of millimetres). The MOVE is driven the
     same: same end within 2 cm, same top speed within 0.05 m/s, same time to 5 m within 0.05 s."""
-    events = [{"at_s": 0.5, kind: {"distance_m": 15, "maxspeed_mps": 3, "curvature_1pm": 0}}]
-    runs = [run(preset, grade, events, duration_s=20.0)]
+    track, t0_s = track_first(kind)       # a REVERSE: its forward track laid uphill first
+    speed_mps = 3.0 if kind == "move" else REVERSE_MPS
+    events = track + shifted([{"at_s": 0.5, kind: {"distance_m": 15, "maxspeed_mps": speed_mps,
+                                                   "curvature_1pm": 0}}], t0_s)
+    runs = [run(preset, grade, events, duration_s=t0_s + 20.0)]
     without_hold(monkeypatch)
-    runs.append(run(preset, grade, events, duration_s=20.0))
+    runs.append(run(preset, grade, events, duration_s=t0_s + 20.0))
     assert runs[0].summary["violations"] == []
     sign = -1.0 if kind == "reverse" else 1.0
 
     def figures(result: Any) -> tuple[float, float, float]:
-        xs = [(float(r["t_s"]), sign * float(r["x_m"])) for r in result.trace]
+        """From the measured command on (the uphill track before a REVERSE may differ)."""
+        rows = [r for r in result.trace if float(r["t_s"]) >= t0_s - 1e-9]
+        x0 = float(rows[0]["x_m"])
+        xs = [(float(r["t_s"]), sign * (float(r["x_m"]) - x0)) for r in rows]
         t5 = next(t for t, x in xs if x >= 5.0)
-        top = max(abs(float(r["speed_mps"])) for r in result.trace)
+        top = max(abs(float(r["speed_mps"])) for r in rows)
         return xs[-1][1], top, t5
 
     (end, top, t5), (end0, top0, t50) = figures(runs[0]), figures(runs[1])

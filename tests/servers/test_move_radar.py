@@ -275,3 +275,42 @@ def test_a_new_reverse_continues_the_allowance_of_the_reverse_under_way() -> Non
         c.record_trail(gps(x=-0.6 + 0.1 * i, odo=0.6 + 0.1 * i, v=1.0), 1)
     fresh, _ = c.clamp_reverse(reverse(12.0), gps(x=0.5, odo=1.7))
     assert fresh.distance_m == pytest.approx(1.0 + CFG.reverse_blind_m, abs=0.3)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("noise_mps", [0.0, 0.06])
+def test_a_second_reverse_of_a_stream_continues_along_the_track_after_a_standstill(
+        preset: str, noise_mps: float) -> None:
+    """Forward 20 m, REVERSE 4 m, stand, REVERSE 12 m: the second is granted along the track.
+    Found by tests/safety/test_faults_rollback.py: GPS speed noise at the standstill (above the
+    move server's 0.05 m/s) read as forward and put a trail point where the vehicle stood,
+    cutting the track: the second REVERSE was clamped to 0 m."""
+    c = corridor(preset)
+    for i in range(0, 1001):
+        c.record_trail(gps(x=0.02 * i, v=2.0), 1)
+    first, _ = c.clamp_reverse(reverse(4.0), gps(x=20.0))
+    assert first.distance_m == 4.0
+    for i in range(1, 201):
+        c.record_trail(gps(x=20.0 - 0.02 * i, odo=20.0 + 0.02 * i, v=-1.0), -1)
+    for _ in range(100):     # standing after the reverse; noise may read as forward
+        c.record_trail(gps(x=16.0, odo=24.0, v=noise_mps), 1 if noise_mps > 0.05 else 0)
+    second, note = c.clamp_reverse(reverse(12.0), gps(x=16.0, odo=24.0))
+    assert second.distance_m == 12.0, note
+    over, _ = c.clamp_reverse(reverse(30.0), gps(x=16.0, odo=24.0))
+    assert over.distance_m == pytest.approx(20.0 - 4.0 + CFG.reverse_blind_m, abs=0.6)
+
+
+def test_forward_travel_after_a_reverse_is_tracked_from_where_it_began() -> None:
+    """REVERSE 1 m (nothing verified), stand (noise reads as forward), MOVE 20 m, REVERSE 25 m:
+    the track covers the 20 m from the start of the MOVE (scenario reverse-unreported-obstacle)."""
+    c = corridor()
+    c.record_trail(gps(x=0.0, odo=0.0, v=0.06), 1)           # noise at the ready start
+    c.clamp_reverse(reverse(12.0), gps())
+    for i in range(1, 51):
+        c.record_trail(gps(x=-0.02 * i, odo=0.02 * i, v=-1.0), -1)
+    for _ in range(50):
+        c.record_trail(gps(x=-1.0, odo=1.0, v=0.06), 1)
+    for i in range(1, 1001):
+        c.record_trail(gps(x=-1.0 + 0.02 * i, odo=1.0 + 0.02 * i, v=2.0), 1)
+    clamped, _ = c.clamp_reverse(reverse(25.0), gps(x=19.0, odo=21.0))
+    assert clamped.distance_m == pytest.approx(20.0 + CFG.reverse_blind_m, abs=0.1)

@@ -146,7 +146,8 @@ class RadarCorridor:
         self.targets: list[tuple[float, float, int]] = []   # remembered world points, readings
         self.trail: deque[tuple[float, float]] = deque(
             maxlen=max(2, int(cfg.trail_length_m / cfg.trail_spacing_m)))
-        self.trail_odometer_m: float | None = None
+        self.forward_odometer_m = 0.0      # travel counted while driving forward
+        self.trail_odometer_m: float | None = None   # forward_odometer_m at the last trail point
         self.last_odometer_m: float | None = None
         # where the current reverse began (pose, odometer): a stream of REVERSE commands shares
         # one allowance instead of being granted the blind metre again and again
@@ -173,16 +174,24 @@ class RadarCorridor:
         travel of ``reverse_blind_m`` ends the current reverse (its anchor)."""
         odo = gps.odometer_m
         last, self.last_odometer_m = self.last_odometer_m, odo
+        advanced_m = max(odo - last, 0.0) if last is not None else 0.0
         if direction <= 0:
+            if advanced_m > 0.0:
+                self.trail_odometer_m = None   # reversed: the next forward travel starts a point
             return
-        if self.reverse_anchor is not None and last is not None:
-            self.forward_since_anchor_m += max(odo - last, 0.0)
+        # only forward travel counts: the odometer also counts reversing, and GPS speed noise
+        # at a standstill reads as "forward" (a point where the vehicle stands after a reverse
+        # would cut the track the next REVERSE of the stream backs along)
+        self.forward_odometer_m += advanced_m
+        if self.reverse_anchor is not None:
+            self.forward_since_anchor_m += advanced_m
             if self.forward_since_anchor_m >= self.config.reverse_blind_m:
                 self.reverse_anchor = None
-        if self.trail_odometer_m is not None and odo - self.trail_odometer_m < \
-                self.config.trail_spacing_m and self.trail:
+        if self.trail and (advanced_m == 0.0 if self.trail_odometer_m is None else
+                           self.forward_odometer_m - self.trail_odometer_m
+                           < self.config.trail_spacing_m):
             return
-        self.trail_odometer_m = odo
+        self.trail_odometer_m = self.forward_odometer_m
         rear = self.params.rear_overhang_m
         h = gps.heading_rad
         self.trail.append((gps.x_m - rear * math.cos(h), gps.y_m - rear * math.sin(h)))

@@ -488,7 +488,10 @@ class SpeedServer:
         armed = (status.computer_speed and status.safety_mode == "drive-by-wire"
                  and not self.sensor_lost and not status.shifting)
         gear = self.gears.get(status.gear)
-        imu_fresh = self.imu is not None and self._fresh(self.last_imu_s, now_s)
+        # an untrusted IMU (frozen, plausibility fault 1103) would read as a brake that does not
+        # decelerate: its samples are left out, the brake check waits for a trusted IMU
+        imu_fresh = (self.imu is not None and self._fresh(self.last_imu_s, now_s)
+                     and self.motion.trusted("imu"))
         findings = self.actuator_monitor.update(
             dt_s, armed=armed, throttle_cmd_pct=self.pedals.throttle_pct,
             brake_cmd_pct=self.pedals.brake_pct, throttle_pct=status.throttle_pct,
