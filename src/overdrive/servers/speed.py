@@ -636,11 +636,13 @@ class SpeedServer:
                             source=SOURCE)
 
     def _source_speeds_mps(self, direction: int) -> list[float]:
-        """Each live speed source (GPS/INS, wheels), in the gear frame."""
+        """Each live, trusted speed source (GPS/INS, wheels), in the gear frame: an untrusted one
+        (frozen GPS reading 0) must not hide a real rollback (as in ``_update_measurements``)."""
         now_s = self.last_now_s if self.last_now_s is not None else 0.0
-        return [direction * s for s, last_s in (
-            (self.gps.speed_mps if self.gps is not None else None, self.last_gps_s),
-            (self.wheel_mps, self.last_wheel_s)) if s is not None and self._fresh(last_s, now_s)]
+        return [direction * s for s, last_s, name in (
+            (self.gps.speed_mps if self.gps is not None else None, self.last_gps_s, "gps_ins"),
+            (self.wheel_mps, self.last_wheel_s, "wheel_speed"))
+            if s is not None and self._fresh(last_s, now_s) and self.motion.trusted(name)]
 
     def _hold_notices(self, now_s: float, out: list) -> None:
         """The direction hold's fault (once per onset) and rollback-caught notices."""
