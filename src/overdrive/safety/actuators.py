@@ -280,8 +280,13 @@ class PedalMonitor:
 
     def update(self, dt_s: float, *, armed: bool, throttle_cmd_pct: float, brake_cmd_pct: float,
                throttle_pct: float, brake_pct: float, direction: int, speed_mps: float,
-               accel_x_mps2: float | None, pitch_rad: float, slipping: bool) -> list[Finding]:
-        """One period: commands sent last period and positions reported now; new onsets."""
+               accel_x_mps2: float | None, pitch_rad: float, slipping: bool,
+               sample_response: bool = True) -> list[Finding]:
+        """One period: commands sent last period and positions reported now; new onsets.
+
+        ``sample_response``: the speed and IMU are live (False while the sensors are lost: the
+        brake response needs them, the stuck checks only the reported positions, and must go on
+        running, so that a throttle stuck open under a sensor-loss emergency stop is cut)."""
         cfg = self.config
         found: list[Finding] = []
         if dt_s <= 0.0:
@@ -304,7 +309,7 @@ class PedalMonitor:
                 self.reported.add(pedal)   # the engine stays cut: one onset per run
                 found.append(Finding(code, fault_message(code, actual_pct=actual,
                                                          command_pct=command)))
-        if (armed and accel_x_mps2 is not None and not slipping
+        if (armed and sample_response and accel_x_mps2 is not None and not slipping
                 and brake_pct >= cfg.min_brake_pct and throttle_pct <= cfg.pedal_off_pct
                 and direction * speed_mps >= cfg.min_speed_mps
                 and brake_pct * 0.01 * self.params.max_brake_decel_mps2 >= cfg.min_predicted_mps2):

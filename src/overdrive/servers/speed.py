@@ -485,8 +485,10 @@ class SpeedServer:
         status = self.status
         if status is None or not self.monitor_actuators:
             return
+        # the stuck checks need only the reported positions: armed through a sensor loss (its
+        # e-stop's full brake must not fight a stuck-open throttle); the brake response is not
         armed = (status.computer_speed and status.safety_mode == "drive-by-wire"
-                 and not self.sensor_lost and not status.shifting)
+                 and not status.shifting)
         gear = self.gears.get(status.gear)
         imu_fresh = self.imu is not None and self._fresh(self.last_imu_s, now_s)
         findings = self.actuator_monitor.update(
@@ -496,7 +498,7 @@ class SpeedServer:
             speed_mps=self.speed_mps,
             accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
-            slipping=status.traction_control)
+            slipping=status.traction_control, sample_response=not self.sensor_lost)
         for finding in findings:
             self._raise_fault(now_s, int(finding.code), finding.message, out)
             if finding.code in CUTS_ENGINE and not self.engine_cut:
