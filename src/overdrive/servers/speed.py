@@ -163,6 +163,10 @@ class SpeedServer:
         self.first_step_s = 0.0
         self.spss_watchdog = Watchdog(self.config.spss_timeout_s)
         self.last_sensor_s: float | None = None   # last VehicleStatus
+        self.last_status_rx_s: float | None = None   # its receipts, for the status period
+        self.status_period_s = 0.0
+        self.status_new = False           # a VehicleStatus arrived since the actuator checks ran
+        self.monitored_status_s: float | None = None   # receipt the actuator checks last ran on
         self.last_gps_s: float | None = None
         self.last_wheel_s: float | None = None
         self.last_imu_s: float | None = None
@@ -206,7 +210,7 @@ class SpeedServer:
         out.extend((Topic.NOTICE, n) for n in self.motion.step(
             now_s, gear.direction if gear is not None else 0))
         self._update_measurements(now_s, dt_s)
-        self._monitor_actuators(now_s, dt_s, out)
+        self._monitor_actuators(now_s, out)
 
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
@@ -277,6 +281,13 @@ class SpeedServer:
         if self._accept_input(finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
                               "vehicle_status: rpm or pedal not finite", out):
             self.status, self.last_sensor_s = msg, now_s
+            if self.last_status_rx_s is not None and now_s > self.last_status_rx_s:
+                # the status period: up at once, down slowly (~10 receipts): jitter-proof
+                interval_s = now_s - self.last_status_rx_s
+                self.status_period_s = max(interval_s, self.status_period_s
+                                           + (interval_s - self.status_period_s) * 0.1)
+                self.actuator_monitor.set_status_period(self.status_period_s)
+            self.last_status_rx_s, self.status_new = now_s, True
 
     def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
         if self._accept_input(finite(msg.speed_mps, msg.pitch_rad),
@@ -478,13 +489,16 @@ class SpeedServer:
         self.sensor_lost = silent
         return edge
 
-    def _monitor_actuators(self, now_s: float, dt_s: float, out: list) -> None:
+    def _monitor_actuators(self, now_s: float, out: list) -> None:
         """Issue 16: last period's pedal commands against the reported positions and response
         (``safety.actuators.PedalMonitor``). A throttle or brake that does not follow cuts the
         engine and latches an emergency stop that no request clears; each onset is a fault."""
         status = self.status
-        if status is None or not self.monitor_actuators:
-            return
+        if status is None or not self.monitor_actuators or not self.status_new:
+            return   # a repeated status is no news: the checks step on each new one only
+        self.status_new = False
+        last_s, self.monitored_status_s = self.monitored_status_s, now_s
+        dt_s = 0.0 if last_s is None else now_s - last_s
         # the stuck checks need only the reported positions: armed through a sensor loss (its
         # e-stop's full brake must not fight a stuck-open throttle); the brake response is not
         armed = (status.computer_speed and status.safety_mode == "drive-by-wire"
