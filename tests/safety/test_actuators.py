@@ -48,9 +48,9 @@ def test_follow_check_hold_time(seconds: float, stuck: bool) -> None:
     assert hold(c, 60.0, 50.0, seconds) is stuck
 
 
-@pytest.mark.parametrize(("rate_pct_per_s", "stuck"), [(0.5, True), (4.0, False)])
+@pytest.mark.parametrize(("rate_pct_per_s", "stuck"), [(0.2, True), (4.0, False)])
 def test_follow_check_a_moving_actuator_is_not_stuck(rate_pct_per_s: float, stuck: bool) -> None:
-    """Still means less than still_pct in hold_s (2 %/s here): 0.5 %/s is stuck, 4 %/s moves."""
+    """Still means less than still_pct in hold_s (0.67 %/s here): 0.2 %/s is stuck, 4 %/s moves."""
     c = check()
     actual = 10.0
     result = False

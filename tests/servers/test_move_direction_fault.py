@@ -71,3 +71,21 @@ def test_a_new_command_after_the_failure_runs(preset) -> None:
     out = step(node, 0.8, 0.1, (cmd(d=15.0, cid=2),))
     assert last(out, Topic.MOVE_REPLY).accepted and node.phase == "moving"
     assert last(out, Topic.ADVANCE).distance_m == pytest.approx(15.0)
+
+
+def test_a_stale_failed_hold_does_not_fail_a_new_command(preset) -> None:
+    """Review of issue 16: a MOVE accepted before the speed server has seen target 0 still reads
+    the previous command's "failed" hold; that is not this command's failure. A failure after
+    the hold was seen clear again is."""
+    node = MoveServer(preset)
+    step(node, 0.0, 0.5, (cmd(d=15.0, cid=1),))
+    step(node, 0.5, 0.1, hold="failed", fault=FAULT)
+    assert node.phase == "failed"
+    out = step(node, 0.6, 0.05, (cmd(d=15.0, cid=2),), hold="failed", fault=FAULT)
+    assert last(out, Topic.MOVE_REPLY).accepted and node.phase == "moving"
+    assert [m for m in all_of(out, Topic.NOTICE) if m.kind == "move_failed"] == []
+    step(node, 0.65, 0.1)                                  # the speed server saw target 0
+    assert node.phase == "moving"
+    out = step(node, 0.75, 0.01, hold="failed", fault=FAULT)
+    assert node.phase == "failed"
+    assert [m.code for m in all_of(out, Topic.NOTICE) if m.kind == "move_failed"] == ["2"]

@@ -74,14 +74,27 @@ def fault_message(code: ActuatorFault, **details: float) -> str:
 class ActuatorMonitorConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
     """Thresholds of the checks; each default says where it comes from."""
 
-    pedal_gap_pct: float = 2.0       # command this far from the position: it must move (a healthy
-                                     # throttle, lag 0.15 s, moves 1.3 % per 0.1 s at this gap)
+    pedal_gap_pct: float = 5.0       # command this far from the position: it must move (covers a
+                                     # real actuator's deadband and 1 % quantised positions; a
+                                     # healthy throttle, lag 0.15 s, moves 4.3 % per 0.3 s here)
     steer_gap_pct: float = 2.0       # same for the road wheels (lag 0.05 s; rate >= 24 %/s even
                                      # at the sweep's slowest steering, rate_scale 0.2)
-    still_pct: float = 0.2           # moved less than this in hold_s: still (10x below the slowest
-                                     # healthy or slow motion at the gap: 2 % / 0.4 s lag x 0.1 s)
-    hold_s: float = 0.1              # still this long while the gap holds: stuck (10 periods;
-                                     # a stuck throttle at 100 % adds ~0.3 m of travel per 0.1 s)
+    still_pct: float = 0.2           # moved less than this in hold_s: still (below one 1 % step
+                                     # and below the slowest healthy or slow motion at the gap)
+    hold_s: float = 0.3              # still this long while the gap holds: stuck; at least
+    hold_periods: float = 3.0        # this many status periods (a 10 Hz status, or a real XGV's
+                                     # 120-200 ms over JAUS, repeats one position for a period).
+                                     # The checks step only on a new status (see ``set_status_
+                                     # period``); 0.3 s: 3 periods of a 10 Hz status
+    full_travel_pct: float = 90.0    # a command near full travel is followed by a position beyond
+                                     # this: a healthy actuator may saturate a few % short of its
+                                     # end stop (calibration, deadband; every e-stop asks 100 %)
+    brake_short_fraction: float = 0.5  # BRAKE_NOT_APPLYING: the brake is clearly short only below
+    brake_short_pct: float = 20.0    # this share of the command and this absolute (a stuck-released
+                                     # brake sits near 0; a partly applied one is the response
+                                     # check's: BRAKE_WEAK / BRAKE_FAILED)
+    brake_strict_below_pct: float = 10.0  # commands below this keep the strict pedal_gap_pct
+                                     # (min_brake_pct: below it half the command is within the gap)
     pedal_off_pct: float = 0.5       # a pedal counts as released below this (adaptive.py)
     min_brake_pct: float = 10.0      # brake samples only above this (adaptive.py)
     min_speed_mps: float = 0.5       # no brake samples below (the last instants of a stop)
@@ -121,16 +134,28 @@ class FollowCheck:
     moves again (not while disarmed: a pause does not make a stuck actuator healthy).
     """
 
-    __slots__ = ("_anchor_pct", "_still_s", "gap_pct", "hold_s", "sense", "still_pct", "stuck")
+    __slots__ = ("_anchor_pct", "_still_s", "full_travel_pct", "gap_pct", "hold_s", "sense",
+                 "still_pct", "stuck")
 
-    def __init__(self, sense: int, gap_pct: float, still_pct: float, hold_s: float) -> None:
+    def __init__(self, sense: int, gap_pct: float, still_pct: float, hold_s: float,
+                 full_travel_pct: float = 100.0) -> None:
         self.sense, self.gap_pct, self.still_pct, self.hold_s = sense, gap_pct, still_pct, hold_s
+        self.full_travel_pct = full_travel_pct
         self._anchor_pct: float | None = None
         self._still_s = 0.0
         self.stuck = False
 
+    def set_hold(self, hold_s: float) -> None:
+        self.hold_s = hold_s
+
+    def away(self, command_pct: float, actual_pct: float) -> bool:
+        """The position is short of the command, in this check's sense, by more than the gap; a
+        command near full travel is followed by any position beyond ``full_travel_pct``."""
+        gap = max(self.gap_pct, abs(command_pct) - self.full_travel_pct)
+        return self.sense * (command_pct - actual_pct) > gap
+
     def update(self, dt_s: float, command_pct: float, actual_pct: float, armed: bool) -> bool:
-        away = self.sense * (command_pct - actual_pct) > self.gap_pct
+        away = self.away(command_pct, actual_pct)
         if not armed or not away:
             self._anchor_pct, self._still_s = None, 0.0
             if armed and self.sense * (command_pct - actual_pct) <= 0.0:
@@ -147,6 +172,27 @@ class FollowCheck:
         if self._still_s >= self.hold_s - 1e-9:
             self.stuck = True
         return self.stuck
+
+
+class BrakeApplyCheck(FollowCheck):
+    """A brake stuck released: the reported brake *clearly* short of the command (below
+    ``brake_short_fraction`` of it and below ``brake_short_pct``); commands below
+    ``brake_strict_below_pct`` keep the strict gap. A brake reaching 97 % of an e-stop's 100 %
+    follows; one partly applied is judged by its response (BRAKE_WEAK / BRAKE_FAILED)."""
+
+    __slots__ = ("config",)
+
+    def __init__(self, config: ActuatorMonitorConfig) -> None:
+        super().__init__(+1, config.pedal_gap_pct, config.still_pct, config.hold_s)
+        self.config = config
+
+    def away(self, command_pct: float, actual_pct: float) -> bool:
+        cfg = self.config
+        if not super().away(command_pct, actual_pct):
+            return False
+        if command_pct < cfg.brake_strict_below_pct:
+            return True
+        return actual_pct < min(cfg.brake_short_fraction * command_pct, cfg.brake_short_pct)
 
 
 def brake_ratio(params: VehicleParams, direction: int, speed_mps: float, accel_x_mps2: float,
@@ -270,18 +316,34 @@ class PedalMonitor:
     def __init__(self, params: VehicleParams, config: ActuatorMonitorConfig | None = None) -> None:
         self.params = params
         self.config = cfg = config or ActuatorMonitorConfig()
-        self.throttle_open = FollowCheck(-1, cfg.pedal_gap_pct, cfg.still_pct, cfg.hold_s)
-        self.throttle_closed = FollowCheck(+1, cfg.pedal_gap_pct, cfg.still_pct, cfg.hold_s)
-        self.brake_released = FollowCheck(+1, cfg.pedal_gap_pct, cfg.still_pct, cfg.hold_s)
+        self.throttle_open = FollowCheck(-1, cfg.pedal_gap_pct, cfg.still_pct, cfg.hold_s,
+                                         cfg.full_travel_pct)
+        self.throttle_closed = FollowCheck(+1, cfg.pedal_gap_pct, cfg.still_pct, cfg.hold_s,
+                                           cfg.full_travel_pct)
+        self.brake_released = BrakeApplyCheck(cfg)
         self.response = BrakeResponse(cfg)
         self.probe = BrakeProbe(cfg)
         self.reported: set[str] = set()   # pedals whose stuck onset was reported
         self.cut = False   # latched: an actuator the speed loop relies on does not follow
 
+    def set_status_period(self, period_s: float) -> None:
+        """The vehicle status's period as measured from its receipts: a position repeats for a
+        period, so "still" needs ``hold_periods`` of them (never less than ``hold_s``)."""
+        hold_s = max(self.config.hold_s, self.config.hold_periods * period_s)
+        for check in (self.throttle_open, self.throttle_closed, self.brake_released):
+            check.set_hold(hold_s)
+
     def update(self, dt_s: float, *, armed: bool, throttle_cmd_pct: float, brake_cmd_pct: float,
                throttle_pct: float, brake_pct: float, direction: int, speed_mps: float,
-               accel_x_mps2: float | None, pitch_rad: float, slipping: bool) -> list[Finding]:
-        """One period: commands sent last period and positions reported now; new onsets."""
+               accel_x_mps2: float | None, pitch_rad: float, slipping: bool,
+               sample_response: bool = True) -> list[Finding]:
+        """One new vehicle status (``dt_s`` since the last one): the commands sent last period
+        and the positions it reports; new onsets. Step it only on a new status: a repeated one
+        would count as an actuator standing still.
+
+        ``sample_response``: the speed and IMU are live (False while the sensors are lost: the
+        brake response needs them, the stuck checks only the reported positions, and must go on
+        running, so that a throttle stuck open under a sensor-loss emergency stop is cut)."""
         cfg = self.config
         found: list[Finding] = []
         if dt_s <= 0.0:
@@ -304,7 +366,7 @@ class PedalMonitor:
                 self.reported.add(pedal)   # the engine stays cut: one onset per run
                 found.append(Finding(code, fault_message(code, actual_pct=actual,
                                                          command_pct=command)))
-        if (armed and accel_x_mps2 is not None and not slipping
+        if (armed and sample_response and accel_x_mps2 is not None and not slipping
                 and brake_pct >= cfg.min_brake_pct and throttle_pct <= cfg.pedal_off_pct
                 and direction * speed_mps >= cfg.min_speed_mps
                 and brake_pct * 0.01 * self.params.max_brake_decel_mps2 >= cfg.min_predicted_mps2):
@@ -335,8 +397,10 @@ class SteeringMonitor:
     def __init__(self, params: VehicleParams, config: ActuatorMonitorConfig | None = None) -> None:
         self.params = params
         self.config = cfg = config or ActuatorMonitorConfig()
-        self.above = FollowCheck(-1, cfg.steer_gap_pct, cfg.still_pct, cfg.hold_s)
-        self.below = FollowCheck(+1, cfg.steer_gap_pct, cfg.still_pct, cfg.hold_s)
+        self.above = FollowCheck(-1, cfg.steer_gap_pct, cfg.still_pct, cfg.hold_s,
+                                 cfg.full_travel_pct)
+        self.below = FollowCheck(+1, cfg.steer_gap_pct, cfg.still_pct, cfg.hold_s,
+                                 cfg.full_travel_pct)
         self.actual_curvature_1pm = 0.0
         self.stuck = False
 
@@ -363,5 +427,5 @@ class SteeringMonitor:
 
 
 __all__ = ["CUTS_ENGINE", "FAULT_MESSAGES", "ActuatorFault", "ActuatorMonitorConfig",
-           "BrakeProbe", "BrakeResponse", "Finding", "FollowCheck", "PedalMonitor",
+           "BrakeApplyCheck", "BrakeProbe", "BrakeResponse", "Finding", "FollowCheck", "PedalMonitor",
            "SteeringMonitor", "brake_ratio", "fault_message"]

@@ -12,11 +12,12 @@ throttle, for metres. Three rules, each a transition of ``TRANSITIONS``:
   parking brake is the hold, as a driver's handbrake start or an electronic parking brake's
   drive-away release;
 - **rollback catch** (``rollback`` -> ``caught``): during a command (target speed above 0),
-  motion against the gear faster than ``rollback_mps`` or further than ``rollback_m`` from the
+  motion against the gear faster than ``rollback_mps`` (``rollback_periods`` in a row) or
+  further than ``rollback_m`` from the
   furthest point since the start (the anchor: a launch, or the last time the client asked for
   0) brakes at once: full service brake, throttle closed, the parking brake takes over once the
-  vehicle stands. One retry follows (``settled``), released only with the throttle at full
-  drive; it is judged against the same anchor, so catch and retry together stay within
+  vehicle stands. One retry follows (``settled``), released uphill only with the throttle at
+  full drive; it is judged against the same anchor, so catch and retry together stay within
   ``rollback_m`` plus one brake lag of travel;
 - **auto-hold**: standing in run with a target of 0, the parking brake is on as well as the speed
   loop's standstill brake, and creeping back (filtered speed beyond ``standstill_rollback_mps``)
@@ -91,7 +92,8 @@ EVENTS: Final[dict[str, str]] = {
     "launch": "a command to move from a standstill with the gear pointing uphill",
     "released": "the drive at the throttle's reported position beats the grade's pull (with "
                 "margin; at full throttle on a retry)",
-    "rollback": "motion against the gear: during a command faster than rollback_mps or further "
+    "rollback": "motion against the gear: during a command faster than rollback_mps "
+                "(rollback_periods in a row) or further "
                 "than rollback_m; standing with target 0, a creep beyond standstill_rollback_mps",
     "settled": "caught, standing for settle_s, a retry left",
     "gave_up": "caught, standing, and the rollback happened with the drive at full (a fault)",
@@ -135,6 +137,9 @@ class DirectionHoldConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=Tru
     standstill_filter_s: float = 0.1  # that filter: the speed server's speed_filter_s
     auto_hold_mps: float = 0.05     # target 0 and slower than this: the parking brake goes on
                                     # before the vehicle stands (it only holds a standing vehicle)
+    rollback_periods: int = 3       # ... for this many periods in a row: one raw sample beyond
+                                    # rollback_mps is ~2 sigma of a real GNSS at low speed; 3
+                                    # periods add 0.02 s (~6 mm at 0.3 m/s) to the catch
     rollback_m: float = 0.03        # "a few centimetres": creeping back slower than rollback_mps;
                                     # leaves 0.07 m of the judge's 0.10 m to stop (brake lag 0.08 s)
     release_margin: float = 0.10    # the drive must beat the pull by 10 %: the plant's tolerance on
@@ -217,6 +222,7 @@ class DirectionHold:
         self.dt_s = 0.0
         self.forward_filt_mps = 0.0  # the most forward live source, filtered (standstill rule)
         self.beyond_limit = False    # ROLLBACK_BEYOND_LIMIT raised for this anchor
+        self.back_fast_n = 0         # consecutive periods faster back than rollback_mps
 
     @property
     def back_m(self) -> float:
@@ -243,6 +249,7 @@ class DirectionHold:
         self.peak_m = max(self.peak_m, self.travel_m)
         if target_mps <= 0.0 and self.state == "free":
             self.peak_m = self.travel_m   # not under a command: nothing to measure a rollback from
+        self.back_fast_n = self.back_fast_n + 1 if speed_mps < -cfg.rollback_mps else 0
         standing = stopped and abs(speed_mps) < cfg.rollback_mps   # filtered and raw: at rest
         self.standing_s = self.standing_s + dt_s if standing else 0.0
         self.time_in_state_s += dt_s
@@ -302,7 +309,7 @@ class DirectionHold:
         state = self.state
         grade_pct = 100.0 * sin_pitch / max(1e-9, (1.0 - sin_pitch * sin_pitch) ** 0.5)
         if state in ("free", "holding") and target_mps > 0.0 and (
-                speed_mps < -cfg.rollback_mps or self.back_m > cfg.rollback_m):
+                self.back_fast_n >= cfg.rollback_periods or self.back_m > cfg.rollback_m):
             self.full_drive_caught = throttle_pct >= cfg.full_drive_pct or self.retry
             self.caught_throttle_pct = throttle_pct
             reason = (f"rolling back at {-speed_mps:.2f} m/s, {self.back_m:.3f} m, in {gear.name} "
@@ -332,7 +339,10 @@ class DirectionHold:
                 return "cancel", None
             drive = full_drive_mps2 * min(max(throttle_pct, 0.0), 100.0) / 100.0
             need = pull_mps2 * (1.0 + cfg.release_margin)
-            enough = (throttle_pct >= cfg.full_drive_pct) if self.retry else drive >= need
+            uphill = sin_pitch > 0.0   # a retry uphill waits for full drive; on flat or
+                                       # downhill ground the drive that beats the pull will do
+            enough = (throttle_pct >= cfg.full_drive_pct) if self.retry and uphill \
+                else drive >= need
             if enough and self._can_release(full_drive_mps2, pull_mps2, gear):
                 return "released", None
             if self.time_in_state_s >= cfg.hold_timeout_s - 1e-9:

@@ -227,6 +227,7 @@ class MoveServer:
         self.radar: Radar | None = None
         self.status: VehicleStatus | None = None
         self.speed_state: SpeedState | None = None
+        self.hold_clear_since_accept = False   # a non-failed direction hold seen since accepted
         self.driving: DrivingStatus | None = None
         self.wheel_mps: float | None = None
         self.steer_cmd_pct: float | None = None
@@ -356,6 +357,8 @@ class MoveServer:
 
     def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
         self.speed_state = msg
+        if msg.direction_hold != "failed":
+            self.hold_clear_since_accept = True
 
     def _driving(self, now_s: float, msg: DrivingStatus, out: list) -> None:
         self.driving = msg
@@ -529,6 +532,7 @@ class MoveServer:
         self.estop_reason = ""
         self.curvature_1pm = float(cmd.curvature_1pm)
         self.active = ActiveCommand(cmd, direction, odometer0_m)
+        self.hold_clear_since_accept = False   # a "failed" hold from before is not this command's
         self._set_phase(next_phase(self.phase, event))
 
     def _too_steep_to_plan(self, cmd: MoveCommand) -> Verdict | None:
@@ -609,9 +613,12 @@ class MoveServer:
 
     def _direction_failed(self, out: list) -> bool:
         """True when the speed server holds the vehicle after a direction fault (issue 16): the
-        active command is abandoned and reported failed (never done), with the fault's words."""
+        active command is abandoned and reported failed (never done), with the fault's words.
+        Only a failure seen after a non-failed hold since the command was accepted counts: the
+        speed server may still report the previous command's failure until it sees target 0."""
         ss = self.speed_state
-        if self.active is None or ss is None or ss.direction_hold != "failed":
+        if (self.active is None or ss is None or ss.direction_hold != "failed"
+                or not self.hold_clear_since_accept):
             return False
         command = self.active.command
         self.active = None

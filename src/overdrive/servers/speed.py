@@ -163,6 +163,10 @@ class SpeedServer:
         self.first_step_s = 0.0
         self.spss_watchdog = Watchdog(self.config.spss_timeout_s)
         self.last_sensor_s: float | None = None   # last VehicleStatus
+        self.last_status_rx_s: float | None = None   # its receipts, for the status period
+        self.status_period_s = 0.0
+        self.status_new = False           # a VehicleStatus arrived since the actuator checks ran
+        self.monitored_status_s: float | None = None   # receipt the actuator checks last ran on
         self.last_gps_s: float | None = None
         self.last_wheel_s: float | None = None
         self.last_imu_s: float | None = None
@@ -206,7 +210,7 @@ class SpeedServer:
         out.extend((Topic.NOTICE, n) for n in self.motion.step(
             now_s, gear.direction if gear is not None else 0))
         self._update_measurements(now_s, dt_s)
-        self._monitor_actuators(now_s, dt_s, out)
+        self._monitor_actuators(now_s, out)
 
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
@@ -277,6 +281,13 @@ class SpeedServer:
         if self._accept_input(finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
                               "vehicle_status: rpm or pedal not finite", out):
             self.status, self.last_sensor_s = msg, now_s
+            if self.last_status_rx_s is not None and now_s > self.last_status_rx_s:
+                # the status period: up at once, down slowly (~10 receipts): jitter-proof
+                interval_s = now_s - self.last_status_rx_s
+                self.status_period_s = max(interval_s, self.status_period_s
+                                           + (interval_s - self.status_period_s) * 0.1)
+                self.actuator_monitor.set_status_period(self.status_period_s)
+            self.last_status_rx_s, self.status_new = now_s, True
 
     def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
         if self._accept_input(finite(msg.speed_mps, msg.pitch_rad),
@@ -478,15 +489,20 @@ class SpeedServer:
         self.sensor_lost = silent
         return edge
 
-    def _monitor_actuators(self, now_s: float, dt_s: float, out: list) -> None:
+    def _monitor_actuators(self, now_s: float, out: list) -> None:
         """Issue 16: last period's pedal commands against the reported positions and response
         (``safety.actuators.PedalMonitor``). A throttle or brake that does not follow cuts the
         engine and latches an emergency stop that no request clears; each onset is a fault."""
         status = self.status
-        if status is None or not self.monitor_actuators:
-            return
+        if status is None or not self.monitor_actuators or not self.status_new:
+            return   # a repeated status is no news: the checks step on each new one only
+        self.status_new = False
+        last_s, self.monitored_status_s = self.monitored_status_s, now_s
+        dt_s = 0.0 if last_s is None else now_s - last_s
+        # the stuck checks need only the reported positions: armed through a sensor loss (its
+        # e-stop's full brake must not fight a stuck-open throttle); the brake response is not
         armed = (status.computer_speed and status.safety_mode == "drive-by-wire"
-                 and not self.sensor_lost and not status.shifting)
+                 and not status.shifting)
         gear = self.gears.get(status.gear)
         # an untrusted IMU (frozen, plausibility fault 1103) would read as a brake that does not
         # decelerate: its samples are left out, the brake check waits for a trusted IMU
@@ -499,7 +515,7 @@ class SpeedServer:
             speed_mps=self.speed_mps,
             accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
-            slipping=status.traction_control)
+            slipping=status.traction_control, sample_response=not self.sensor_lost)
         for finding in findings:
             self._raise_fault(now_s, int(finding.code), finding.message, out)
             if finding.code in CUTS_ENGINE and not self.engine_cut:
@@ -639,11 +655,13 @@ class SpeedServer:
                             source=SOURCE)
 
     def _source_speeds_mps(self, direction: int) -> list[float]:
-        """Each live speed source (GPS/INS, wheels), in the gear frame."""
+        """Each live, trusted speed source (GPS/INS, wheels), in the gear frame: an untrusted one
+        (frozen GPS reading 0) must not hide a real rollback (as in ``_update_measurements``)."""
         now_s = self.last_now_s if self.last_now_s is not None else 0.0
-        return [direction * s for s, last_s in (
-            (self.gps.speed_mps if self.gps is not None else None, self.last_gps_s),
-            (self.wheel_mps, self.last_wheel_s)) if s is not None and self._fresh(last_s, now_s)]
+        return [direction * s for s, last_s, name in (
+            (self.gps.speed_mps if self.gps is not None else None, self.last_gps_s, "gps_ins"),
+            (self.wheel_mps, self.last_wheel_s, "wheel_speed"))
+            if s is not None and self._fresh(last_s, now_s) and self.motion.trusted(name)]
 
     def _hold_notices(self, now_s: float, out: list) -> None:
         """The direction hold's fault (once per onset) and rollback-caught notices."""
