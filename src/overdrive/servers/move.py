@@ -321,7 +321,8 @@ class MoveServer:
         return self._ignore
 
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
+        if finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.odometer_m, msg.pitch_rad,
+                  msg.roll_rad):
             self.gps, self.gps_s = msg, now_s
             self.motion.gps(now_s, msg)
         else:

@@ -1,0 +1,120 @@
+"""Must-fix items of the review of issue 16: each with the test that failed before its fix."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from overdrive.messages import GpsIns, Imu, Topic, WheelSpeed
+from overdrive.safety.plausibility import PlausibilityFault
+from overdrive.servers.driving import DrivingModule
+from overdrive.servers.move import MoveServer
+from overdrive.servers.speed import SpeedServer
+from overdrive.vehicle.presets import G_MPS2, PRESETS
+from tests.conftest import PRESET_NAMES
+
+DT_S = 0.01
+BAD_NUMBERS = (math.nan, math.inf, -math.inf)
+GPS_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "pitch_rad", "roll_rad", "odometer_m")
+
+
+def gps(**kw) -> GpsIns:
+    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
+                  odometer_m=0.0)
+    fields.update(kw)
+    return GpsIns(**fields)
+
+
+def imu(accel_x_mps2: float, yaw_rate_rps: float = 0.0) -> Imu:
+    return Imu(accel_x_mps2=accel_x_mps2, accel_y_mps2=0.0, accel_z_mps2=G_MPS2,
+               yaw_rate_rps=yaw_rate_rps)
+
+
+def fault_codes(out) -> set[int]:
+    return {int(n.code) for t, n in out if t == Topic.NOTICE and n.kind == "fault"}
+
+
+# ------------------------------------------------------------------ 1: one IMU handler
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_driving_module_checker_sees_the_imu(preset: str) -> None:
+    """GPS/INS and wheel speed frozen at 3 m/s while the IMU shows 1 m/s^2 of braking: the
+    driving module's own checker must call them frozen (it saw no IMU when ``_imu`` was
+    defined twice)."""
+    node = DrivingModule(PRESETS[preset])
+    frozen_gps = gps(speed_mps=3.0, odometer_m=10.0)
+    frozen_wheel = WheelSpeed(speed_mps=3.0)
+    codes: set[int] = set()
+    for i in range(200):
+        t = i * DT_S
+        # noisy IMU: every reading differs (a live, varying sensor)
+        out = node.step(t, [(Topic.GPS_INS, frozen_gps), (Topic.WHEEL_SPEED, frozen_wheel),
+                            (Topic.IMU, imu(-1.0 + 1e-4 * (i % 7), yaw_rate_rps=0.01 * (i % 3)))])
+        codes |= fault_codes(out)
+    assert int(PlausibilityFault.NO_TRUSTED_SPEED) in codes
+    assert node.yaw_rate_rps == pytest.approx(0.01 * (199 % 3))   # yaw rate kept too
+
+
+# ------------------------------------------------------------------ 2: finite checks
+
+@pytest.mark.parametrize("field", GPS_FIELDS)
+@pytest.mark.parametrize("bad", BAD_NUMBERS)
+def test_move_server_refuses_a_gps_ins_with_any_non_finite_field(field: str, bad: float) -> None:
+    node = MoveServer(PRESETS["escape-hybrid"])
+    good = gps(x_m=1.0, odometer_m=1.0)
+    node.step(0.0, [(Topic.GPS_INS, good)])
+    out = node.step(DT_S, [(Topic.GPS_INS, gps(**{"x_m": 1.0, "odometer_m": 1.0, field: bad}))])
+    rejected = [n for t, n in out if t == Topic.NOTICE and n.kind == "rejected"]
+    assert rejected and rejected[0].code == "sensor"
+    assert node.gps == good
+
+
+@pytest.mark.parametrize("field", ("speed_mps", "pitch_rad", "odometer_m"))
+@pytest.mark.parametrize("bad", BAD_NUMBERS)
+def test_speed_server_refuses_a_gps_ins_with_a_non_finite_field_it_uses(field: str,
+                                                                         bad: float) -> None:
+    node = SpeedServer(PRESETS["ranger-6x6"])
+    good = gps(odometer_m=1.0)
+    node.step(0.0, [(Topic.GPS_INS, good)])
+    out = node.step(DT_S, [(Topic.GPS_INS, gps(**{"odometer_m": 1.0, field: bad}))])
+    rejected = [n for t, n in out if t == Topic.NOTICE and n.kind == "rejected"]
+    assert rejected and rejected[0].reason.startswith("gps_ins")
+    assert node.gps == good
+
+
+@pytest.mark.parametrize("field", GPS_FIELDS)
+def test_driving_module_refuses_a_gps_ins_with_any_non_finite_field(field: str) -> None:
+    node = DrivingModule(PRESETS["escape-hybrid"])
+    good = gps(odometer_m=1.0)
+    node.step(0.0, [(Topic.GPS_INS, good)])
+    out = node.step(DT_S, [(Topic.GPS_INS, gps(**{"odometer_m": 1.0, field: math.nan}))])
+    assert any(t == Topic.NOTICE and n.kind == "rejected" for t, n in out)
+    assert node.gps == good
+
+
+# ------------------------------------------------------------------ 6: steering monitor speed
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_steering_monitor_gets_the_trusted_speed_not_a_frozen_gps(preset: str) -> None:
+    """GPS/INS frozen at 5 m/s while the wheels read ~2 m/s: the steering monitor (which turns
+    the yaw rate into the curvature actually driven) must get the trusted 2 m/s."""
+    from tests.servers.driving_harness import sensors
+    params = PRESETS[preset]
+    node = DrivingModule(params)
+    seen: list[float] = []
+    real_update = node.steer_monitor.update
+
+    def spy(dt_s, **kw):
+        seen.append(kw["speed_mps"])
+        return real_update(dt_s, **kw)
+
+    node.steer_monitor.update = spy
+    frozen_gps = gps(speed_mps=5.0, odometer_m=10.0)
+    for i in range(100):
+        inbox = [(t, m) for t, m in sensors(params, speed_mps=2.0) if t != Topic.GPS_INS]
+        inbox += [(Topic.GPS_INS, frozen_gps),
+                  (Topic.WHEEL_SPEED, WheelSpeed(speed_mps=2.0 + 1e-3 * (i % 5)))]
+        node.step(i * DT_S, inbox)
+    assert not node.motion.trusted("gps_ins")
+    assert seen and all(abs(v - 2.0) < 0.01 for v in seen[-10:])
