@@ -243,3 +243,20 @@ def test_both_speeds_frozen_at_zero_while_the_imu_accelerates_is_still_a_fault(
         m.imu(t, imu(accel_mps2 + 1e-3 * (i % 7)))
         codes |= {int(n.code) for n in m.step(t, 1)}
     assert int(PlausibilityFault.NO_TRUSTED_SPEED) in codes
+
+
+# ------------------------------------------------------------------ 3: whole run
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("at_s", [0.2, 3.0])
+def test_radar_dropout_and_gps_freeze_together_before_an_obstacle(preset: str, at_s: float) -> None:
+    """Radar silent and GPS/INS frozen at once, an obstacle ahead: no contact and no
+    authorization violation (the cap shrinks with the wheels' progress)."""
+    from tests.safety.test_faults_radar import move, run
+    result = run(preset, [move(150.0, 9.0),
+                          {"at_s": at_s, "sensor": {"name": "radar", "fault": "dropout",
+                                                    "for_s": 100}},
+                          {"at_s": at_s, "sensor": {"name": "gps", "fault": "freeze",
+                                                    "for_s": 100}}],
+                 {"obstacles": [{"x_m": 60, "y_m": 0.0}]}, duration_s=40)
+    assert result.summary["violations"] == []
