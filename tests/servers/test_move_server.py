@@ -202,8 +202,9 @@ def test_stop_authorizes_nothing(preset) -> None:
 
 def test_reverse_after_standstill_shifts_and_voids_forward_authorization(preset) -> None:
     node = MoveServer(preset)
-    for i in range(21):   # 10 m driven forward: a track the REVERSE may back over (move_radar)
-        node.step(i * 0.01, [*sensors(preset, speed=1.0 if i < 20 else 0.0, odo=0.5 * i),
+    for i in range(21):   # 10 m driven forward: a track the REVERSE may back over (move_radar;
+        # 0.5 m a period is 50 m/s: a plausible odometer, so the track is recorded)
+        node.step(i * 0.01, [*sensors(preset, speed=50.0 if i < 20 else 0.0, odo=0.5 * i),
                              *([(Topic.MOVE_COMMAND, cmd(d=10.0))] if i == 0 else [])])
     out = node.step(0.21, [*sensors(preset, odo=10.0), (Topic.MOVE_COMMAND, cmd("reverse", d=5.0, v=1.0, cid=2))])
     assert last(out, Topic.MOVE_REPLY).accepted

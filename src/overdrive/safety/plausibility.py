@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections import deque
 
 import msgspec
 
@@ -80,6 +81,12 @@ class PlausibilityConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True
                                   # 0.02 m/s x sqrt(100 periods) x 10 ms = 2 mm
     sign_mps: float = 0.05        # below this the GPS speed's sign is noise (2.5 sigma): the
                                   # engaged direction signs the odometer instead
+    standstill_window_s: float = 1.0  # zero-velocity update (review of issue 16): while no speed
+                                  # source reads ``moving_mps``, the IMU's evidence counts only
+                                  # over this window (4 x freeze_s). A receiver in static hold and
+                                  # a wheel sensor at 0 repeat exact values at a standstill; an
+                                  # accelerometer bias up to imu_dv_mps / window = 0.2 m/s^2 (4
+                                  # sigma of the presets' noise) then never calls them frozen
 
 
 class _Track:
@@ -137,6 +144,8 @@ class MotionPlausibility:
         self._base: dict[str, float | None] = {"gps_ins": None, "wheel_speed": None}
         self._speed: float | None = None
         self._progress = {1: 0.0, -1: 0.0}
+        # (time, IMU integral) of the last standstill_window_s, for the zero-velocity update
+        self._imu_history: deque[tuple[float, float]] = deque()
 
     # ------------------------------------------------------------------ inputs
 
@@ -210,6 +219,10 @@ class MotionPlausibility:
             self.direction = 1 if direction > 0 else -1
         notices: list[Notice] = []
         gps, wheel, imu = self.gps_track, self.wheel_track, self.imu_track
+        history = self._imu_history
+        history.append((now_s, self.imu_integral_mps))
+        while history and history[0][0] < now_s - cfg.standstill_window_s - 1e-9:
+            history.popleft()
         moving = {t.name: self._moving_evidence(t, now_s) for t in (gps, wheel)}
         for track in (gps, wheel):
             frozen = track.repeated_s(now_s) >= cfg.freeze_s - 1e-9 and moving[track.name]
@@ -247,9 +260,20 @@ class MotionPlausibility:
         if (imu.trusted and imu.live(now_s, cfg.timeout_s)
                 and imu.repeated_s(now_s) < cfg.freeze_s - 1e-9):
             dv = self.imu_integral_mps - track.imu_at_same
+            if self._standstill(now_s) and self._imu_history:
+                # zero-velocity update: no source reads motion, so only the IMU's evidence of
+                # the last window counts (a bias integrates without limit over a long stop)
+                dv = self.imu_integral_mps - self._imu_history[0][1] \
+                    if self._imu_history[0][0] >= track.same_since_s else dv
             if abs(dv) >= cfg.imu_dv_mps:
                 return f"the IMU integrates to {dv:+.2f} m/s since"
         return ""
+
+    def _standstill(self, now_s: float) -> bool:
+        """No live speed source reads ``moving_mps`` (and at least one is live)."""
+        cfg = self.config
+        live = [t for t in (self.gps_track, self.wheel_track) if t.live(now_s, cfg.timeout_s)]
+        return bool(live) and all(abs(self._now_speed(t) or 0.0) < cfg.moving_mps for t in live)
 
     def _imu_frozen(self, now_s: float) -> bool:
         cfg = self.config

@@ -184,8 +184,9 @@ def validate_drive_mode(msg: Any) -> str:
 def validate_gps(msg: Any) -> str:
     if not isinstance(msg, GpsIns):
         return f"gps_ins: not a GpsIns ({type(msg).__name__})"
-    if not finite(msg.speed_mps, msg.pitch_rad, msg.roll_rad, msg.odometer_m):
-        return "gps_ins: speed, attitude or odometer not finite"
+    if not finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.pitch_rad, msg.roll_rad,
+                  msg.odometer_m):
+        return "gps_ins: pose, speed, attitude or odometer not finite"
     return ""
 
 
@@ -587,7 +588,13 @@ class DrivingModule:
             self.motion.wheel(now_s, msg)
 
     def _imu(self, now_s: float, msg: Any, out: list) -> None:
-        if isinstance(msg, Imu) and finite(msg.accel_x_mps2):
+        """One IMU handler: yaw rate for the steering monitor, acceleration for the motion
+        cross-check (review of issue 16: a second ``_imu`` once hid the first)."""
+        if not isinstance(msg, Imu):
+            return
+        if finite(msg.yaw_rate_rps):
+            self.yaw_rate_rps = msg.yaw_rate_rps
+        if finite(msg.accel_x_mps2):
             self.motion.imu(now_s, msg)
 
     def _progress_m(self, reverse: bool) -> float:
@@ -606,10 +613,6 @@ class DrivingModule:
                 self.steer_status = msg
             if msg.traction_control is True:
                 self._slip(now_s)
-
-    def _imu(self, now_s: float, msg: Any, out: list) -> None:
-        if isinstance(msg, Imu) and finite(msg.yaw_rate_rps):
-            self.yaw_rate_rps = msg.yaw_rate_rps
 
     def _slip(self, now_s: float) -> None:
         self.traction.update(now_s, True)
@@ -745,7 +748,7 @@ class DrivingModule:
         armed = status.computer_steering and status.safety_mode == "drive-by-wire"
         finding = self.steer_monitor.update(
             dt_s, armed=armed, command_pct=self.steer_sent_pct, actual_pct=status.steer_pct,
-            speed_mps=self.gps.speed_mps, yaw_rate_rps=self.yaw_rate_rps)
+            speed_mps=self.motion.speed_mps or 0.0, yaw_rate_rps=self.yaw_rate_rps)
         if finding is not None and not self.steering_stuck:
             self.steering_stuck = True
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,

@@ -322,7 +322,8 @@ class MoveServer:
         return self._ignore
 
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if finite(msg.speed_mps, msg.odometer_m, msg.pitch_rad, msg.roll_rad):
+        if finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.odometer_m, msg.pitch_rad,
+                  msg.roll_rad):
             self.gps, self.gps_s = msg, now_s
             self.motion.gps(now_s, msg)
         else:
@@ -402,9 +403,14 @@ class MoveServer:
         if self.gps is not None:
             self.history.record(now_s, self.progress_m("forward"))
             self.history_reverse.record(now_s, self.progress_m("reverse"))
-            self.corridor.record_trail(self.gps, 1 if self.speed_mps > cfg.standstill_mps else 0)
+            if self.motion.trusted("gps_ins"):   # the own track only from a trusted pose
+                self.corridor.record_trail(self.gps,
+                                           1 if self.speed_mps > cfg.standstill_mps else 0)
+        # review of issue 16: the corridor's memory and its clear range follow the conservative
+        # signed progress (a frozen GPS/INS odometer must not stop the clear range shrinking)
         out.extend((Topic.NOTICE, n) for n in self.corridor.update(
-            now_s, self.gps, self._path_curvatures(), self.direction == "forward"))
+            now_s, self.gps, self._path_curvatures(), self.direction == "forward",
+            progress_m=self.progress_m("forward"), pose_trusted=self.motion.trusted("gps_ins")))
         self._learn(dt_s)
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
@@ -781,8 +787,8 @@ class MoveServer:
         moving = self.phase in ("starting", "shifting", "moving") and self.active is not None
         authorized = self.remaining_m if moving else 0.0
         if self.direction == "forward":   # an untrusted radar: only the range last seen clear
-            authorized = min(authorized, self.corridor.forward_cap_m(self.odometer_m,
-                                                                     cfg.estop_margin_m))
+            authorized = min(authorized, self.corridor.forward_cap_m(
+                self.progress_m("forward"), cfg.estop_margin_m))
         out.append((Topic.ADVANCE, AdvanceAuthorization(
             source=SOURCE, distance_m=authorized, reverse=self.direction == "reverse",
             issued_s=now_s)))

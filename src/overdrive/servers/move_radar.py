@@ -7,7 +7,12 @@ vehicle's width but off the centre line as soon as it leaves the cone (issue 16)
 - **remembers** every target a trusted reading reports, in the world frame (GPS/INS pose at
   the reading, range and bearing; a reading without a bearing is placed on the centre line),
   until the vehicle has passed it, or a later trusted reading sees through its place (the
-  point lies well inside the cone, nearer than what the radar now reports);
+  point lies well inside the cone, nearer than what the radar now reports). "Passed" needs
+  the pose AND the conservative progress since the last sighting (more than the target's
+  distance then): one outlier pose never erases the memory (review of issue 16). The memory
+  follows only poses the motion cross-check trusts and that agree with the progress since
+  the last accepted pose (``pose_jump_m``); otherwise the nearest target's distance is
+  carried over from the last accepted pose, less the progress since;
 - judges the **corridor** along the predicted path: the arc of the commanded and of the
   measured (steering) curvature, as wide as the vehicle plus ``corridor_margin_m`` on each
   side (plus what the front corner swings out in a curve), and gives the path distance from
@@ -84,6 +89,11 @@ class RadarConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_on
     trail_tolerance_m: float = 0.15     # the reverse path may deviate this much from the track
                                         # (segments between its points): GPS noise 0.02 m x 3,
                                         # path tracking at 1.5 m/s
+    pose_jump_m: float = 1.0            # a pose further than this beyond the progress since the
+                                        # last accepted pose is an outlier: 50x the GPS/INS
+                                        # position noise (0.02 m), ~10 periods at 10 m/s
+    pose_reanchor_s: float = 1.0        # outliers this long in a row: the pose moved for good
+                                        # (an RTK re-fix); accepted again (100 periods)
 
 
 class Pose(msgspec.Struct, frozen=True):
@@ -143,7 +153,9 @@ class RadarCorridor:
         self.config = cfg = config or RadarConfig()
         self.front_m = params.length_m - params.rear_overhang_m   # rear axle -> front bumper
         self.half_width_m = 0.5 * params.width_m
-        self.targets: list[tuple[float, float, int]] = []   # remembered world points, readings
+        # remembered world points: x, y, readings merged, and the progress at which the front
+        # bumper reaches it as of its last sighting (forgotten only once the progress is past)
+        self.targets: list[tuple[float, float, int, float]] = []
         self.trail: deque[tuple[float, float]] = deque(
             maxlen=max(2, int(cfg.trail_length_m / cfg.trail_spacing_m)))
         self.forward_odometer_m = 0.0      # travel counted while driving forward
@@ -158,10 +170,15 @@ class RadarCorridor:
         self.fresh_s: float | None = None    # when the last fresh reading came
         self.received_s: float | None = None
         self.same_since_odometer_m: float | None = None   # a target reading unchanged since
-        self.clear_end_m: float | None = None  # odometer up to which the path was seen clear
+        self.clear_end_m: float | None = None  # progress up to which the path was seen clear
         self.fault: RadarFault | None = None
         self.nearest_m = math.inf
         self.closing_mps = 0.0   # closing speed of this period's reading, if in the corridor
+        # the last accepted pose (its progress, and the memory's nearest distance from it)
+        self.good_pose: GpsIns | None = None
+        self.good_progress_m = 0.0
+        self.good_nearest_m = math.inf
+        self.outlier_since_s: float | None = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -199,12 +216,17 @@ class RadarCorridor:
     # ------------------------------------------------------------------ per period
 
     def update(self, now_s: float, gps: GpsIns | None, curvatures_1pm: Iterable[float],
-               forward: bool) -> list[Notice]:
-        """One period: health, memory and the nearest corridor target; the fault notices."""
+               forward: bool, *, progress_m: float | None = None,
+               pose_trusted: bool = True) -> list[Notice]:
+        """One period: health, memory and the nearest corridor target; the fault notices.
+
+        ``progress_m``: the conservative signed forward progress (the move server's
+        ``progress_m("forward")``; default the GPS/INS odometer); ``pose_trusted``: whether the
+        motion cross-check trusts the GPS/INS (else the memory is not updated from it)."""
         cfg = self.config
         msg, self.pending = self.pending, None
         notices: list[Notice] = []
-        odo = gps.odometer_m if gps is not None else 0.0
+        odo = progress_m if progress_m is not None else (gps.odometer_m if gps is not None else 0.0)
         fresh = msg is not None and not (
             self.last is not None and msg.seq is not None and msg.seq == self.last.seq)
         frozen_content = False
@@ -229,7 +251,8 @@ class RadarCorridor:
         if fault is not None and fault != self.fault:
             notices.append(self._fault_notice(now_s, fault))
         self.fault = fault
-        pose = Pose(gps.x_m, gps.y_m, gps.heading_rad) if gps is not None else None
+        pose = Pose(gps.x_m, gps.y_m, gps.heading_rad) \
+            if gps is not None and pose_trusted and self._pose_accepted(now_s, gps, odo) else None
         ks = tuple(curvatures_1pm)
         self.nearest_m = math.inf
         self.closing_mps = 0.0
@@ -244,10 +267,27 @@ class RadarCorridor:
                 if math.isfinite(self.nearest_m):
                     self.closing_mps = msg.closing_speed_mps
             if pose is not None:
-                self._observe(pose, msg)
+                self._observe(pose, msg, odo)
         if pose is not None:
-            self.nearest_m = min(self.nearest_m, self._nearest(pose, ks))
+            self.good_nearest_m = self._nearest(pose, ks, odo)
+            self.nearest_m = min(self.nearest_m, self.good_nearest_m)
+        elif math.isfinite(self.good_nearest_m):   # no pose to trust: carry over, less progress
+            self.nearest_m = min(self.nearest_m,
+                                 max(self.good_nearest_m - (odo - self.good_progress_m), 0.0))
         return notices
+
+    def _pose_accepted(self, now_s: float, gps: GpsIns, progress_m: float) -> bool:
+        """Whether ``gps`` agrees with the progress since the last accepted pose."""
+        cfg, good = self.config, self.good_pose
+        ok = good is None or math.hypot(gps.x_m - good.x_m, gps.y_m - good.y_m) <= \
+            abs(progress_m - self.good_progress_m) + cfg.pose_jump_m
+        if not ok:
+            if self.outlier_since_s is None:
+                self.outlier_since_s = now_s
+            ok = now_s - self.outlier_since_s >= cfg.pose_reanchor_s
+        if ok:
+            self.good_pose, self.good_progress_m, self.outlier_since_s = gps, progress_m, None
+        return ok
 
     def _fault_notice(self, now_s: float, fault: RadarFault) -> Notice:
         if fault == RadarFault.SILENT:
@@ -258,35 +298,38 @@ class RadarCorridor:
                else "the vehicle stops before the end of the range last seen clear")
         return Notice(kind="fault", source=SOURCE, code=str(int(fault)), reason=f"{what}; {end}")
 
-    def _observe(self, pose: Pose, msg: Radar) -> None:
+    def _observe(self, pose: Pose, msg: Radar, progress_m: float) -> None:
         """Clear what the reading sees through; remember its target."""
         cfg, p = self.config, self.params
         c, s = math.cos(pose.heading_rad), math.sin(pose.heading_rad)
         bx, by = pose.x_m + self.front_m * c, pose.y_m + self.front_m * s
         keep = []
         cone = p.radar_half_angle_rad - cfg.see_through_angle_rad
-        for tx, ty, n in self.targets:
+        for target in self.targets:
+            tx, ty, _, pass_m = target
             dx, dy = tx - bx, ty - by
             along, left = dx * c + dy * s, -dx * s + dy * c
             rng = math.hypot(dx, dy)
             if along > 0.0 and abs(math.atan2(left, along)) <= cone \
                     and rng < msg.range_m - cfg.see_through_m:
                 continue                       # the radar looks through where it was
-            if along < -p.length_m:
+            if along < -p.length_m and progress_m > pass_m:
                 continue                       # behind the vehicle: passed
-            keep.append((tx, ty, n))
+            keep.append(target)
         if msg.target:
             b = pose.heading_rad + (msg.bearing_rad or 0.0)
             x, y = bx + msg.range_m * math.cos(b), by + msg.range_m * math.sin(b)
+            pass_m = progress_m + msg.range_m * math.cos(msg.bearing_rad or 0.0)
             near = [t for t in keep if math.hypot(t[0] - x, t[1] - y) <= cfg.merge_m]
             if near:   # the same target again: a running mean averages the pose noise out
-                tx, ty, n = min(near, key=lambda t: math.hypot(t[0] - x, t[1] - y))
-                keep.remove((tx, ty, n))
+                old = min(near, key=lambda t: math.hypot(t[0] - x, t[1] - y))
+                keep.remove(old)
+                tx, ty, n, _ = old
                 w = 1.0 / (n + 1)
                 x, y, n = tx + w * (x - tx), ty + w * (y - ty), min(n + 1, cfg.merge_readings)
             else:
                 n = 1
-            keep.append((x, y, n))
+            keep.append((x, y, n, pass_m))
         if len(keep) > cfg.max_targets:
             keep.sort(key=lambda t: math.hypot(t[0] - bx, t[1] - by))
             keep = keep[:cfg.max_targets]
@@ -303,16 +346,21 @@ class RadarCorridor:
                 best = min(best, dist)
         return best
 
-    def _nearest(self, pose: Pose, curvatures_1pm: tuple[float, ...]) -> float:
+    def _nearest(self, pose: Pose, curvatures_1pm: tuple[float, ...], progress_m: float) -> float:
         """Path distance from the front bumper to the nearest remembered target in the corridor
-        of any of ``curvatures_1pm``; targets behind the front bumper are forgotten (passed)."""
+        of any of ``curvatures_1pm``; targets behind the front bumper are forgotten (passed)
+        once the progress since their last sighting is past them too."""
         best = math.inf
         keep = []
-        for tx, ty, n in self.targets:
+        for target in self.targets:
+            tx, ty, _, pass_m = target
             along, left = to_vehicle(pose, tx, ty)
             if along < self.front_m:
+                if progress_m > pass_m:
+                    continue
+                keep.append(target)
                 continue
-            keep.append((tx, ty, n))
+            keep.append(target)
             best = min(best, self._corridor_distance(along, left, curvatures_1pm))
         self.targets = keep
         return best
@@ -323,14 +371,14 @@ class RadarCorridor:
     def trusted(self) -> bool:
         return self.fault is None
 
-    def forward_cap_m(self, odometer_m: float, estop_margin_m: float) -> float:
+    def forward_cap_m(self, progress_m: float, estop_margin_m: float) -> float:
         """Largest forward authorization: unlimited while the radar is trusted; else what is
         left of the range last seen clear, short of it by the e-stop margin and ``hold_gap_m``."""
         if self.fault is None:
             return math.inf
         if self.clear_end_m is None:
             return 0.0
-        left = self.clear_end_m - odometer_m - estop_margin_m - self.config.hold_gap_m
+        left = self.clear_end_m - progress_m - estop_margin_m - self.config.hold_gap_m
         return max(left, 0.0)
 
     def rear_clear_m(self, gps: GpsIns | None, curvature_1pm: float,

@@ -290,8 +290,8 @@ class SpeedServer:
             self.last_status_rx_s, self.status_new = now_s, True
 
     def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad),
-                              "gps_ins: speed or pitch not finite", out):
+        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad, msg.odometer_m),
+                              "gps_ins: speed, pitch or odometer not finite", out):
             self.gps, self.last_gps_s = msg, now_s
             self.motion.gps(now_s, msg)
 
