@@ -217,6 +217,7 @@ class DirectionHold:
         self.dt_s = 0.0
         self.forward_filt_mps = 0.0  # the most forward live source, filtered (standstill rule)
         self.beyond_limit = False    # ROLLBACK_BEYOND_LIMIT raised for this anchor
+        self.cannot_climb = False    # held on the brakes: this gear cannot climb this grade
 
     @property
     def back_m(self) -> float:
@@ -261,7 +262,9 @@ class DirectionHold:
             fault = self._beyond_limit(gear)
         mode: Mode = {"free": "free", "holding": "park", "caught": "brake",
                       "failed": "brake"}[self.state]  # type: ignore[assignment]
-        if self.state == "holding" and not self._can_release(full_drive, pull, gear):
+        self.cannot_climb = (self.state == "holding" and target_mps > 0.0
+                             and not self._can_release(full_drive, pull, gear))
+        if self.cannot_climb:
             mode = "brake"   # the gear cannot climb this: no throttle against the parking brake
         if target_mps > 0.0:
             self.auto_hold = False
@@ -288,12 +291,23 @@ class DirectionHold:
         self.stalled_s = 0.0
 
     def _can_release(self, full_drive_mps2: float, pull_mps2: float, gear: Gear) -> bool:
-        """The gear's full drive beats the pull with margin, and it has not failed on this grade."""
-        need = pull_mps2 * (1.0 + self.config.release_margin)
+        """The gear's drive at full throttle (``full_drive_pct`` of it) beats the pull, and it has
+        not failed on this grade. Within ``release_margin`` of the pull it is released only at
+        full throttle (``_released``), the rollback catch guarding a model that was optimistic."""
         known = self.failed_pull_mps2.get(gear.name)
         if known is not None and pull_mps2 >= known * (1.0 - self.config.known_grade_margin):
             return False
-        return full_drive_mps2 >= need
+        return full_drive_mps2 * self.config.full_drive_pct / 100.0 >= pull_mps2
+
+    def _released(self, full_drive_mps2: float, pull_mps2: float, throttle_pct: float) -> bool:
+        """The throttle's reported position gives enough drive to let go of the parking brake:
+        the pull with ``release_margin``, or full throttle on a retry or in a gear whose full
+        drive beats the pull by less than the margin (a loaded vehicle's low gear)."""
+        cfg = self.config
+        need = pull_mps2 * (1.0 + cfg.release_margin)
+        if self.retry or full_drive_mps2 < need:
+            return throttle_pct >= cfg.full_drive_pct
+        return full_drive_mps2 * min(max(throttle_pct, 0.0), 100.0) / 100.0 >= need
 
     def _event(self, target_mps: float, speed_mps: float, filtered_mps: float, stopped: bool,
                sin_pitch: float, throttle_pct: float, gear: Gear, full_drive_mps2: float,
@@ -330,9 +344,7 @@ class DirectionHold:
         if state == "holding":
             if target_mps <= 0.0:
                 return "cancel", None
-            drive = full_drive_mps2 * min(max(throttle_pct, 0.0), 100.0) / 100.0
-            need = pull_mps2 * (1.0 + cfg.release_margin)
-            enough = (throttle_pct >= cfg.full_drive_pct) if self.retry else drive >= need
+            enough = self._released(full_drive_mps2, pull_mps2, throttle_pct)
             if enough and self._can_release(full_drive_mps2, pull_mps2, gear):
                 return "released", None
             if self.time_in_state_s >= cfg.hold_timeout_s - 1e-9:
@@ -362,10 +374,10 @@ class DirectionHold:
 
     def _why_held(self, full_drive_mps2: float, pull_mps2: float, throttle_pct: float,
                   gear: Gear) -> str:
-        need = pull_mps2 * (1.0 + self.config.release_margin)
-        if full_drive_mps2 < need:
-            return (f"its full drive ({full_drive_mps2:.2f} m/s^2) cannot beat the pull "
-                    f"({pull_mps2:.2f} m/s^2) with the {self.config.release_margin:.0%} margin")
+        full_pct = self.config.full_drive_pct
+        if full_drive_mps2 * full_pct / 100.0 < pull_mps2:
+            return (f"its full drive ({full_drive_mps2:.2f} m/s^2, {full_pct:.0f} % of it at full "
+                    f"throttle) cannot beat the pull ({pull_mps2:.2f} m/s^2)")
         if gear.name in self.failed_pull_mps2:
             return "it already failed on this grade in this gear"
         return (f"the throttle stayed at {throttle_pct:.0f} %, short of the drive the pull "
