@@ -7,8 +7,12 @@ throttle, for metres. Three rules, each a transition of ``TRANSITIONS``:
 - **hill-start hold** (``launch`` -> ``holding``): a start from a standstill with the gear
   pointing uphill keeps the parking brake on while the throttle loop builds up; it is released
   (``released``) only once the drive force the throttle gives *now* (the actuator's reported
-  position, through the preset's drive model) beats the grade's pull with a margin. The
-  service brake and the throttle are never commanded together (the command gate's rule): the
+  position, through the preset's drive model) beats the grade's pull with a margin (a gear
+  whose full drive beats the pull by less than that margin, a loaded vehicle's low gear, is
+  released at full throttle, as a retry). A gear that cannot beat the pull even at full
+  throttle is held on the brakes, throttle closed (``cannot_climb``): the speed server's hint
+  counts that as lugging (``suggest_downshift`` after 1 s), so the client can stop, shift to a
+  lower gear and restart before the hold's 3 s fault. The service brake and the throttle are never commanded together (the command gate's rule): the
   parking brake is the hold, as a driver's handbrake start or an electronic parking brake's
   drive-away release;
 - **rollback catch** (``rollback`` -> ``caught``): during a command (target speed above 0),
@@ -90,7 +94,7 @@ after a fault until the client stops asking to move."""
 EVENTS: Final[dict[str, str]] = {
     "launch": "a command to move from a standstill with the gear pointing uphill",
     "released": "the drive at the throttle's reported position beats the grade's pull (with "
-                "margin; at full throttle on a retry)",
+                "margin; at full throttle on a retry or in a gear within the margin)",
     "rollback": "motion against the gear: during a command faster than rollback_mps or further "
                 "than rollback_m; standing with target 0, a creep beyond standstill_rollback_mps",
     "settled": "caught, standing for settle_s, a retry left",
@@ -139,7 +143,9 @@ class DirectionHoldConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=Tru
                                     # leaves 0.07 m of the judge's 0.10 m to stop (brake lag 0.08 s)
     release_margin: float = 0.10    # the drive must beat the pull by 10 %: the plant's tolerance on
                                     # its models (monitor.ELLIPSE_TOLERANCE is 15 % on the ellipse);
-                                    # a throttle weaker than that is caught by the rollback rule
+                                    # a throttle weaker than that is caught by the rollback rule;
+                                    # a gear within it is released only at full_drive_pct, and
+                                    # only if its drive there beats the pull (no model rollback)
     full_drive_pct: float = 95.0    # throttle position counting as full drive (actuator settling:
                                     # the lag leaves 5 % after 3 time constants)
     settle_s: float = 0.3           # caught: stand this long before a retry (the move server's
