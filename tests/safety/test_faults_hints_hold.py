@@ -98,3 +98,19 @@ def test_healthy_hill_starts_get_no_hint_and_no_fault(preset, grade_percent) -> 
     assert [e for e in events(result, "hint") if e["hint"] == "suggest_downshift"] == []
     assert events(result, "fault") == []
     assert max(float(r["x_m"]) for r in result.trace) >= 59.3
+
+
+@pytest.mark.parametrize("effectiveness", [0.9, 0.96])
+def test_a_weak_throttle_in_the_marginal_low_gear_never_rolls_back(effectiveness) -> None:
+    """Red team: the loaded escape's low gear on 16 % is released at full throttle inside the
+    10 % margin; with a throttle weaker than the model it stalls (fault, MOVE failed) or creeps
+    up, never back."""
+    data = {"name": "hints-hold-weak", "vehicle": {"preset": "escape-hybrid", "mass_kg": 3400.0},
+            "start": "ready", "duration_s": 30.0,
+            "world": {"friction": 0.8, "grade_percent": 16.0},
+            "events": [{"at_s": 0.2, "actuator": {"throttle": {"effectiveness": effectiveness}}},
+                       {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 5,
+                                              "curvature_1pm": 0}}]}
+    result = run_scenario(parse_scenario(data), None)
+    assert result.summary["violations"] == []
+    assert never_rolled_back(result)
