@@ -312,8 +312,6 @@ def test_reversing_after_a_downshift_and_forward_again() -> None:
     assert result.summary["final"]["gear"] == "low6wd"           # still preferred going forward
 
 
-@pytest.mark.xfail(strict=True, reason="issue 16 case 2: a hill start with a throttle that does "
-                                       "not respond rolls back (the hill-start brake hold, H3)")
 def test_throttle_stuck_closed_during_the_gear_change_does_not_roll_back() -> None:
     """Found by attacking the downshift: the throttle sticks at 0 while the vehicle stands for
     the shift; the restart in low6wd releases the brake on the 15 % grade."""

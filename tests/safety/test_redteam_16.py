@@ -56,12 +56,6 @@ def estops(result: Any) -> list[dict]:
 
 # --------------------------------------------------------------------------- defects found
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 16 red team: radar silent (t=3 s) or frozen, and GPS/INS frozen (t=3.5 s; also frozen "
-    "first at 3 s and radar silent at 3.5 s): faults 1151/1152 and 1101 are raised, but the verified "
-    "clear distance is never used up (the pose is frozen) and the vehicle drives into the obstacle "
-    "it saw before: at 60 m, contact at 7.98 m/s (t=10.4 s), both presets, silent or frozen; dead "
-    "ahead at 30 m at 3 m/s, contact at 2.99 m/s. Each fault alone stops at 51-53 m"))
 @pytest.mark.parametrize(("preset", "radar_fault", "speed_mps", "obstacle"), [
     *[(preset, "dropout", 8.0, {"x_m": 60, "y_m": 0.4}) for preset in PRESET_NAMES],
     ("escape-hybrid", "freeze", 8.0, {"x_m": 60, "y_m": 0.4}),
@@ -95,12 +89,6 @@ def test_weak_brake_on_a_downhill_stays_inside_the_authorization(preset: str) ->
     assert result.summary["violations"] == []
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 16 red team, false alarm: GPS/INS noise (x, y and speed; the fault sweep draws 0.1-3.0 "
-    "sigma) on a healthy vehicle with healthy wheel speed and IMU: the speed server reads it as a "
-    "brake giving 16-22 % of its deceleration (fault 1134, then 1136), cuts the engine and e-stops. "
-    "1.5 m for 8 s at 8 m/s: the 60 m MOVE ends at 9.75 m (escape-hybrid) / 6.48 m (ranger-6x6); "
-    "3 m: 5.2-5.3 m; 0.5 m at 2 m/s: the 30 m MOVE ends at 8.59 m (e-stop at 8.74 s)"))
 @pytest.mark.parametrize(("preset", "speed_mps", "sigma_m", "distance_m"), [
     *[(preset, 8.0, 1.5, 60.0) for preset in PRESET_NAMES], ("escape-hybrid", 2.0, 0.5, 30.0)])
 def test_noisy_gps_does_not_stop_a_healthy_vehicle(preset: str, speed_mps: float, sigma_m: float,

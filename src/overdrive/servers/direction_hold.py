@@ -7,8 +7,12 @@ throttle, for metres. Three rules, each a transition of ``TRANSITIONS``:
 - **hill-start hold** (``launch`` -> ``holding``): a start from a standstill with the gear
   pointing uphill keeps the parking brake on while the throttle loop builds up; it is released
   (``released``) only once the drive force the throttle gives *now* (the actuator's reported
-  position, through the preset's drive model) beats the grade's pull with a margin. The
-  service brake and the throttle are never commanded together (the command gate's rule): the
+  position, through the preset's drive model) beats the grade's pull with a margin (a gear
+  whose full drive beats the pull by less than that margin, a loaded vehicle's low gear, is
+  released at full throttle, as a retry). A gear that cannot beat the pull even at full
+  throttle is held on the brakes, throttle closed (``cannot_climb``): the speed server's hint
+  counts that as lugging (``suggest_downshift`` after 1 s), so the client can stop, shift to a
+  lower gear and restart before the hold's 3 s fault. The service brake and the throttle are never commanded together (the command gate's rule): the
   parking brake is the hold, as a driver's handbrake start or an electronic parking brake's
   drive-away release;
 - **rollback catch** (``rollback`` -> ``caught``): during a command (target speed above 0),
@@ -91,7 +95,7 @@ after a fault until the client stops asking to move."""
 EVENTS: Final[dict[str, str]] = {
     "launch": "a command to move from a standstill with the gear pointing uphill",
     "released": "the drive at the throttle's reported position beats the grade's pull (with "
-                "margin; at full throttle on a retry)",
+                "margin; at full throttle on a retry uphill or in a gear within the margin)",
     "rollback": "motion against the gear: during a command faster than rollback_mps "
                 "(rollback_periods in a row) or further "
                 "than rollback_m; standing with target 0, a creep beyond standstill_rollback_mps",
@@ -144,7 +148,9 @@ class DirectionHoldConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=Tru
                                     # leaves 0.07 m of the judge's 0.10 m to stop (brake lag 0.08 s)
     release_margin: float = 0.10    # the drive must beat the pull by 10 %: the plant's tolerance on
                                     # its models (monitor.ELLIPSE_TOLERANCE is 15 % on the ellipse);
-                                    # a throttle weaker than that is caught by the rollback rule
+                                    # a throttle weaker than that is caught by the rollback rule;
+                                    # a gear within it is released only at full_drive_pct, and
+                                    # only if its drive there beats the pull (no model rollback)
     full_drive_pct: float = 95.0    # throttle position counting as full drive (actuator settling:
                                     # the lag leaves 5 % after 3 time constants)
     settle_s: float = 0.3           # caught: stand this long before a retry (the move server's
@@ -223,6 +229,7 @@ class DirectionHold:
         self.forward_filt_mps = 0.0  # the most forward live source, filtered (standstill rule)
         self.beyond_limit = False    # ROLLBACK_BEYOND_LIMIT raised for this anchor
         self.back_fast_n = 0         # consecutive periods faster back than rollback_mps
+        self.cannot_climb = False    # held on the brakes: this gear cannot climb this grade
 
     @property
     def back_m(self) -> float:
@@ -268,7 +275,9 @@ class DirectionHold:
             fault = self._beyond_limit(gear)
         mode: Mode = {"free": "free", "holding": "park", "caught": "brake",
                       "failed": "brake"}[self.state]  # type: ignore[assignment]
-        if self.state == "holding" and not self._can_release(full_drive, pull, gear):
+        self.cannot_climb = (self.state == "holding" and target_mps > 0.0
+                             and not self._can_release(full_drive, pull, gear))
+        if self.cannot_climb:
             mode = "brake"   # the gear cannot climb this: no throttle against the parking brake
         if target_mps > 0.0:
             self.auto_hold = False
@@ -295,12 +304,25 @@ class DirectionHold:
         self.stalled_s = 0.0
 
     def _can_release(self, full_drive_mps2: float, pull_mps2: float, gear: Gear) -> bool:
-        """The gear's full drive beats the pull with margin, and it has not failed on this grade."""
-        need = pull_mps2 * (1.0 + self.config.release_margin)
+        """The gear's drive at full throttle (``full_drive_pct`` of it) beats the pull, and it has
+        not failed on this grade. Within ``release_margin`` of the pull it is released only at
+        full throttle (``_released``), the rollback catch guarding a model that was optimistic."""
         known = self.failed_pull_mps2.get(gear.name)
         if known is not None and pull_mps2 >= known * (1.0 - self.config.known_grade_margin):
             return False
-        return full_drive_mps2 >= need
+        return full_drive_mps2 * self.config.full_drive_pct / 100.0 >= pull_mps2
+
+    def _released(self, full_drive_mps2: float, pull_mps2: float, throttle_pct: float,
+                  sin_pitch: float) -> bool:
+        """The throttle's reported position gives enough drive to let go of the parking brake:
+        the pull with ``release_margin``, or full throttle on a retry uphill (on flat or downhill
+        ground the drive that beats the pull will do) or in a gear whose full drive beats the
+        pull by less than the margin (a loaded vehicle's low gear)."""
+        cfg = self.config
+        need = pull_mps2 * (1.0 + cfg.release_margin)
+        if (self.retry and sin_pitch > 0.0) or full_drive_mps2 < need:
+            return throttle_pct >= cfg.full_drive_pct
+        return full_drive_mps2 * min(max(throttle_pct, 0.0), 100.0) / 100.0 >= need
 
     def _event(self, target_mps: float, speed_mps: float, filtered_mps: float, stopped: bool,
                sin_pitch: float, throttle_pct: float, gear: Gear, full_drive_mps2: float,
@@ -337,12 +359,7 @@ class DirectionHold:
         if state == "holding":
             if target_mps <= 0.0:
                 return "cancel", None
-            drive = full_drive_mps2 * min(max(throttle_pct, 0.0), 100.0) / 100.0
-            need = pull_mps2 * (1.0 + cfg.release_margin)
-            uphill = sin_pitch > 0.0   # a retry uphill waits for full drive; on flat or
-                                       # downhill ground the drive that beats the pull will do
-            enough = (throttle_pct >= cfg.full_drive_pct) if self.retry and uphill \
-                else drive >= need
+            enough = self._released(full_drive_mps2, pull_mps2, throttle_pct, sin_pitch)
             if enough and self._can_release(full_drive_mps2, pull_mps2, gear):
                 return "released", None
             if self.time_in_state_s >= cfg.hold_timeout_s - 1e-9:
@@ -372,10 +389,10 @@ class DirectionHold:
 
     def _why_held(self, full_drive_mps2: float, pull_mps2: float, throttle_pct: float,
                   gear: Gear) -> str:
-        need = pull_mps2 * (1.0 + self.config.release_margin)
-        if full_drive_mps2 < need:
-            return (f"its full drive ({full_drive_mps2:.2f} m/s^2) cannot beat the pull "
-                    f"({pull_mps2:.2f} m/s^2) with the {self.config.release_margin:.0%} margin")
+        full_pct = self.config.full_drive_pct
+        if full_drive_mps2 * full_pct / 100.0 < pull_mps2:
+            return (f"its full drive ({full_drive_mps2:.2f} m/s^2, {full_pct:.0f} % of it at full "
+                    f"throttle) cannot beat the pull ({pull_mps2:.2f} m/s^2)")
         if gear.name in self.failed_pull_mps2:
             return "it already failed on this grade in this gear"
         return (f"the throttle stayed at {throttle_pct:.0f} %, short of the drive the pull "

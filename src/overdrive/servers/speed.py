@@ -687,7 +687,8 @@ class SpeedServer:
                               accel_mps2=self.accel_filt_mps2, target_mps=target,
                               sin_pitch=math.sin(pitch), engine_rpm=status.engine_rpm,
                               throttle_pct=status.throttle_pct,
-                              traction_control=status.traction_control)
+                              traction_control=status.traction_control,
+                              held_cannot_climb=self.direction_hold.cannot_climb)
         self.hint = self.hints.update(now_s, view)
 
     def _speed_state(self, fault: int, fault_message: str) -> SpeedState:

@@ -14,7 +14,11 @@ Decisions (docs/speed-server.md, "Hints"):
   rpm after the shift stays in range), for ``lug_time_s``. Judged against the *target*, not the
   controller's speed reference: the reference never leads the measured speed by more than
   0.3 m/s (no wind-up), so a gap to the reference can never show lugging. Standing still at
-  full throttle on a grade the gear cannot hold counts (a stall).
+  full throttle on a grade the gear cannot hold counts (a stall), and so does a hill start the
+  direction hold keeps on the brakes because the gear cannot beat the grade
+  (``servers.direction_hold``, ``cannot_climb``): its throttle is closed, yet it is the same
+  stall, found before the throttle is tried. The hint comes ``lug_time_s`` into the hold, well
+  before the hold's fault (``hold_timeout_s``, 3 s), so the client can stop, shift and restart.
 - **Upshift.** In a forward gear below the drive gear, when the engine speed *and* the ground
   speed are both at least ``upshift_rpm_fraction`` of the gear's range (the rpm alone is not
   enough: spinning wheels rev the engine at a standstill), the client asks for about that much,
@@ -76,6 +80,8 @@ class HintInputs(msgspec.Struct, frozen=True):
     engine_rpm: float
     throttle_pct: float
     traction_control: bool
+    held_cannot_climb: bool = False   # the direction hold keeps a start on the brakes: this
+                                      # gear cannot beat the grade (direction_hold.cannot_climb)
 
 
 class HintMonitor:
@@ -119,7 +125,8 @@ class HintMonitor:
         rpm_frac = (view.engine_rpm - p.idle_rpm) / max(p.redline_rpm - p.idle_rpm, 1.0)
         gear = view.gear
         self.lug_since_s = _timed(
-            self.lugging(gear, ground, view.accel_mps2, view.target_mps, view.throttle_pct),
+            self.lugging(gear, ground, view.accel_mps2, view.target_mps, view.throttle_pct,
+                         held_cannot_climb=view.held_cannot_climb),
             self.lug_since_s, now_s)
         self.up_since_s = _timed(
             self.upshift_ready(gear, ground, view.target_mps, view.sin_pitch, rpm_frac),
@@ -135,16 +142,21 @@ class HintMonitor:
         return "none"
 
     def lugging(self, gear: Gear, speed_mps: float, accel_mps2: float, target_mps: float,
-                throttle_pct: float) -> bool:
-        """Full throttle, behind the target and not gaining, slow enough for the low gear."""
+                throttle_pct: float, *, held_cannot_climb: bool = False) -> bool:
+        """Full throttle, behind the target and not gaining, slow enough for the low gear; or
+        asked to move but held on the brakes because this gear cannot beat the grade (the
+        throttle is closed there, so only the hold knows)."""
         cfg = self.config
         low = self._low
         if (low is None or gear.direction <= 0 or low.direction <= 0
                 or low.max_force_n <= gear.max_force_n):
             return False
         v = gear.direction * speed_mps
+        gap = min(cfg.lug_gap_mps, cfg.lug_gap_fraction * target_mps)
+        if held_cannot_climb and target_mps > 0.0 and target_mps - v >= gap:
+            return True
         return (throttle_pct >= cfg.lug_throttle_pct
-                and target_mps - v >= min(cfg.lug_gap_mps, cfg.lug_gap_fraction * target_mps)
+                and target_mps - v >= gap
                 and gear.direction * accel_mps2 < cfg.lug_accel_mps2
                 and abs(speed_mps) < low.max_speed_mps * self.gear_cap_fraction)
 
