@@ -153,7 +153,7 @@ def test_throttle_stuck_at_launch_downhill_barely_moves(at_s: float) -> None:
         move(0.5, 15, 3), actuator(at_s, throttle={"stuck": True})])
     assert result.summary["violations"] == []
     assert estops(result)
-    assert final_x_m(result) < 0.5
+    assert final_x_m(result) < 1.0   # the stuck check needs 0.3 s (three status periods at most)
 
 
 def test_imu_noise_at_a_hill_start_is_no_false_alarm() -> None:
