@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test test-under-load lint bench clean coverage-gate interop
+.PHONY: run test test-under-load lint bench clean coverage-gate interop test-variants
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -32,6 +32,10 @@ test: lint
 	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock and not interop"
 	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
 	@$(MAKE) --no-print-directory coverage-gate
+
+# Issue 16's whole-run variant sweeps in full (`make test` runs one case in four: tests/conftest.py).
+test-variants: $(STAMP)
+	OVERDRIVE_ALL_VARIANTS=1 $(PY) -m pytest -n 2 -p no:cacheprovider $(addprefix tests/safety/,test_faults_radar.py test_faults_rollback.py test_faults_actuators.py test_faults_hints.py test_faults_sense.py)
 
 interop: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider -m interop -rs

@@ -92,13 +92,8 @@ def build_nodes(scenario: Scenario) -> list[Node]:
         nodes.append(speed_cls(params, initial_state="run" if ready else "parked",
                                initial_gear=params.drive_gear if ready else None))
     if spec.interface == "jaus" or spec.control == "motion-profile":
-        # the simulated XGV and the stack's JAUS client stand where VehicleSim stands; JAUS 3.3
-        # reports the wrench *efforts* (and under motion profile the XGV's own loops set them),
-        # not actuator positions: the servers' actuator monitoring (issue 16) has nothing to
-        # compare its commands with there
-        for node in nodes:
-            if hasattr(node, "monitor_actuators"):
-                node.monitor_actuators = False
+        # the simulated XGV and the stack's JAUS client stand where VehicleSim stands (actuator
+        # monitoring is off over JAUS: xgv_link.without_actuator_monitoring)
         from overdrive.xgv_link import lockstep_nodes
 
         return lockstep_nodes(scenario, nodes[1:])

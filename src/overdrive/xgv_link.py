@@ -310,6 +310,15 @@ def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
     return found
 
 
+def without_actuator_monitoring(servers: Sequence[Any]) -> None:
+    """JAUS 3.3 reports the wrench *efforts* (and under motion profile the XGV's own loops set
+    them), not actuator positions: the servers' actuator monitoring (issue 16) has nothing to
+    compare its commands with over JAUS, so it is switched off (a residual hazard: H11, H14)."""
+    for node in servers:
+        if hasattr(node, "monitor_actuators"):
+            node.monitor_actuators = False
+
+
 def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
                    profile: JausProfile = "xgv") -> list[Any]:
     """The XGV, the client and ``servers`` (player first) for a lock-step run of ``scenario``
@@ -322,6 +331,7 @@ def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
     control = "motion-profile" if spec.control == "motion-profile" else "wrench"
     client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, profile=profile))
     port = _ClientPort(link)
+    without_actuator_monitoring(servers)
     return [XgvSimNode(simulator, link), XgvSensorNode(client, port), *servers,
             XgvCommandNode(client, port)]
 
@@ -339,6 +349,7 @@ def drive_nodes(scenario: Scenario, servers: Sequence[Any], remote: Address,
     client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, publish_truth=True,
                                                          accel_filter_s=0.05, profile=profile))
     port = _ClientPort(UdpPort(remote, bind))
+    without_actuator_monitoring(servers)
     return [XgvSensorNode(client, port), *servers, XgvCommandNode(client, port)]
 
 
