@@ -313,10 +313,16 @@ def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
 def without_actuator_monitoring(servers: Sequence[Any]) -> None:
     """JAUS 3.3 reports the wrench *efforts* (and under motion profile the XGV's own loops set
     them), not actuator positions: the servers' actuator monitoring (issue 16) has nothing to
-    compare its commands with over JAUS, so it is switched off (a residual hazard: H11, H14)."""
+    compare its commands with over JAUS, so it is switched off (a residual hazard: H11, H14).
+    Nor does an XGV have the collision radar: the move server's radar health check (issue 16)
+    would hold a vehicle that has none, so it is told none is fitted (H22: over JAUS the planner
+    owns the clearance ahead)."""
     for node in servers:
         if hasattr(node, "monitor_actuators"):
             node.monitor_actuators = False
+        corridor = getattr(node, "corridor", None)
+        if corridor is not None:
+            corridor.fitted = False
 
 
 def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],

@@ -151,6 +151,7 @@ class RadarCorridor:
     def __init__(self, params: VehicleParams, config: RadarConfig | None = None) -> None:
         self.params = params
         self.config = cfg = config or RadarConfig()
+        self.fitted = True   # False: the vehicle has no radar (an XGV over JAUS): no health faults
         self.front_m = params.length_m - params.rear_overhang_m   # rear axle -> front bumper
         self.half_width_m = 0.5 * params.width_m
         # remembered world points: x, y, readings merged, and the progress at which the front
@@ -245,7 +246,7 @@ class RadarCorridor:
         fault: RadarFault | None = None
         if frozen_content:
             fault = RadarFault.FROZEN
-        elif self.fresh_s is None or now_s - self.fresh_s > cfg.timeout_s:
+        elif self.fitted and (self.fresh_s is None or now_s - self.fresh_s > cfg.timeout_s):
             repeating = self.received_s is not None and now_s - self.received_s <= cfg.timeout_s
             fault = RadarFault.FROZEN if repeating else RadarFault.SILENT
         if fault is not None and fault != self.fault:
