@@ -23,7 +23,7 @@ from overdrive.bus.zenoh_bus import (
     session_config,
 )
 from overdrive.launch import free_port, stack_registry
-from overdrive.messages import Notice, PedalCommand, SetSpeed, Topic, WheelSpeed
+from overdrive.messages import SCHEMA_VERSION, Notice, PedalCommand, SetSpeed, Topic, WheelSpeed
 from tests.bus.waits import LOADED_TIMEOUT_S, wait_for
 
 pytestmark = pytest.mark.wallclock   # real sessions and threads: run serially (Makefile)
@@ -112,7 +112,8 @@ def test_garbage_on_the_wire_is_counted_and_never_stops_delivery(mesh) -> None:
     inbox = speed.subscribe([Topic.SET_SPEED, Topic.WHEEL_SPEED])
     connected(driving, inbox, Topic.SET_SPEED, SPSS)
     key = "overdrive/ego/"
-    junk = [b"", b"\xff" * 10, b"\x94\x01\xa8SetSpeed\xa7driving\x80", b"\x94\x09\xa1x\xa1y\x80",
+    junk = [b"", b"\xff" * 10, bytes([0x94, SCHEMA_VERSION]) + b"\xa8SetSpeed\xa7driving\x80",
+            b"\x94\x09\xa1x\xa1y\x80",
             stack_registry().encode(WheelSpeed(speed_mps=1.0), "vehicle")]   # right frame, wrong topic
     for frame in junk:
         rogue.session.put(key + Topic.SET_SPEED, frame)
