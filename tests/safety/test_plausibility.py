@@ -115,10 +115,11 @@ def test_a_noise_free_bench_at_constant_speed_is_not_frozen() -> None:
                                                 (1.5, True), (-1.5, True)])
 def test_both_speeds_frozen_are_caught_by_the_imu(accel: float, flagged: bool) -> None:
     """GPS/INS and wheel speed repeat 0 while the IMU integrates to motion: no trusted speed.
-    Over the 0.5 s window 0.3 m/s^2 integrates to 0.15 m/s (< imu_dv_mps 0.2), 0.5 to 0.25."""
+    At rest the IMU counts from SETTLE_S (0.5 s) after the repeats began: over the next 0.5 s
+    0.3 m/s^2 integrates to 0.15 m/s (< imu_dv_mps 0.2), 0.5 to 0.25."""
     bench = Bench()
     frozen_g, frozen_w = gps(0.0), WheelSpeed(speed_mps=0.0)
-    for _ in range(51):
+    for _ in range(101):
         bench.step(frozen_g, frozen_w, imu(accel + bench.n(0.05)))
     assert (bench.node.speed_mps is None) is flagged
     if flagged:

@@ -45,6 +45,11 @@ import msgspec
 from overdrive.messages import GpsIns, Imu, Notice, WheelSpeed
 from overdrive.vehicle.presets import G_MPS2
 
+SETTLE_S = 0.5
+"""After a stop, IMU evidence counts from this long after the speed sources began repeating: a
+velocity-derived IMU (the XGV client's, 0.05 s filter over 20 ms reports) lags the stop by a few
+tenths of a second."""
+
 
 class PlausibilityFault(enum.IntEnum):
     """Fault codes of the motion-sensing checks (issue 16's range 1101-1119)."""
@@ -260,11 +265,18 @@ class MotionPlausibility:
         if (imu.trusted and imu.live(now_s, cfg.timeout_s)
                 and imu.repeated_s(now_s) < cfg.freeze_s - 1e-9):
             dv = self.imu_integral_mps - track.imu_at_same
-            if self._standstill(now_s) and self._imu_history:
+            standstill = self._standstill(now_s)
+            if standstill and self._imu_history:
                 # zero-velocity update: no source reads motion, so only the IMU's evidence of
                 # the last window counts (a bias integrates without limit over a long stop)
                 dv = self.imu_integral_mps - self._imu_history[0][1] \
                     if self._imu_history[0][0] >= track.same_since_s else dv
+            if standstill:
+                # at rest the IMU counts only from SETTLE_S after the repeats began: the end of
+                # a braking (a lagging or velocity-derived IMU, as over JAUS) decelerates into
+                # the stop (interop drive: -0.23 m/s after ojVehicleSim stood)
+                settled = [v for t, v in self._imu_history if t >= track.same_since_s + SETTLE_S]
+                dv = self.imu_integral_mps - settled[0] if settled else 0.0
             if abs(dv) >= cfg.imu_dv_mps:
                 return f"the IMU integrates to {dv:+.2f} m/s since"
         return ""
