@@ -209,8 +209,10 @@ def test_restarted_speed_server_rejoins_cleanly(run_dir: Path) -> None:
     restarts = [e for e in summary["events"] if e["kind"] == "process_restart"]
     assert [e["node"] for e in restarts] == ["speed"]
     speed = result.reports["speed"]             # the report of the restarted process
-    assert "vehicle-sim" in result.reports, summary["launch"]["processes"]
-    assert speed["epoch_monotonic_s"] == result.reports["vehicle-sim"]["epoch_monotonic_s"]
+    # another process's report (one SIGKILLed at stop on a loaded host writes none)
+    others = [r for name, r in result.reports.items() if name != "speed"]
+    assert others, summary["launch"]["processes"]
+    assert all(speed["epoch_monotonic_s"] == r["epoch_monotonic_s"] for r in others)
     # it ran after rejoining (a loaded host may take seconds to start Python and import)
     assert speed["runtime"]["steps"] > 0
     assert speed["bus"]["decode_errors"] == {} and speed["bus"]["rejected"] == {}
