@@ -74,3 +74,36 @@ def free_udp_port(host: str) -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
         sock.bind((host, 0))
         return sock.getsockname()[1]
+
+
+VEHICLE_SIM_START_S = 4.0   # node manager and vehicle up (kit example script: 2 s + 4 s)
+
+
+@contextlib.contextmanager
+def openjaus_vehicle_sim(run_dir: Path, kit: Path, build: Path) -> Iterator[None]:
+    """ojNodeManager and ojVehicleSim (under ``script``: it needs a terminal) started in
+    ``run_dir`` from the kit's configuration, up after ``VEHICLE_SIM_START_S``; both told to quit
+    (Escape on their stdin) and stopped on exit."""
+    import shutil
+
+    shutil.copy(kit / "nodeManager_vsim.conf", run_dir / "nodeManager.conf")
+    shutil.copytree(build / "openjaus/ojVehicleSim/config", run_dir / "config")
+    for fifo in ("nm_in", "vsim_in"):
+        os.mkfifo(run_dir / fifo)
+    nm_in = os.open(run_dir / "nm_in", os.O_RDWR)
+    vsim_in = os.open(run_dir / "vsim_in", os.O_RDWR)
+    try:
+        with open(run_dir / "nm.log", "w") as nm_log, started(
+                [str(build / "ojNodeManager")], cwd=run_dir, stdin=nm_in, stdout=nm_log,
+                stderr=subprocess.STDOUT), started(
+                ["script", "-qfc", str(build / "ojVehicleSim"), str(run_dir / "vsim.log")],
+                cwd=run_dir, stdin=vsim_in, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL, env={**os.environ, "TERM": "xterm"}):
+            time.sleep(VEHICLE_SIM_START_S)
+            yield
+            os.write(vsim_in, b"\x1b")
+            os.write(nm_in, b"\x1b")
+            time.sleep(0.5)
+    finally:
+        os.close(nm_in)
+        os.close(vsim_in)

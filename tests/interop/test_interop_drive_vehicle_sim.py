@@ -18,7 +18,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 import re
 import shutil
 import socket
@@ -27,7 +26,7 @@ import time
 from pathlib import Path
 
 import pytest
-from processes import VENV_BIN, started
+from processes import VENV_BIN, openjaus_vehicle_sim
 
 pytestmark = pytest.mark.interop
 
@@ -35,7 +34,6 @@ PROJECT = Path(__file__).resolve().parents[2]
 SCENARIO = PROJECT / "scenarios" / "openjaus-wrench-drive.yaml"
 NODE_JUDP = ("127.0.0.2", 3794)
 CLIENT_BIND = ("127.0.0.3", 3794)
-START_S = 4.0              # node manager and vehicle up (kit example script: 2 s + 4 s)
 DRIVE_TIMEOUT_S = 30.0     # the scenario's 12 s in wall-clock time, plus start and exit
 COMMANDED_M = 12.0         # the scenario's move: 12 m straight ahead, sent at 1 s
 MOVE_AT_S = 1.0
@@ -73,36 +71,16 @@ def test_overdrive_drive_moves_openjaus_vehicle_sim(openjaus_vsim: Path, kit: Pa
     for address in (NODE_JUDP, CLIENT_BIND):
         if not _port_free(address):
             pytest.skip(f"{address[0]}:{address[1]} is taken; OpenJAUS needs the JUDP port 3794")
-    build = openjaus_vsim
-    shutil.copy(kit / "nodeManager_vsim.conf", tmp_path / "nodeManager.conf")
-    shutil.copytree(build / "openjaus/ojVehicleSim/config", tmp_path / "config")
-    for fifo in ("nm_in", "vsim_in"):
-        os.mkfifo(tmp_path / fifo)
-    nm_in = os.open(tmp_path / "nm_in", os.O_RDWR)
-    vsim_in = os.open(tmp_path / "vsim_in", os.O_RDWR)
     run = tmp_path / "run"
-    try:
-        with open(tmp_path / "nm.log", "w") as nm_log, started(
-                [str(build / "ojNodeManager")], cwd=tmp_path, stdin=nm_in, stdout=nm_log,
-                stderr=subprocess.STDOUT), started(
-                ["script", "-qfc", str(build / "ojVehicleSim"), str(tmp_path / "vsim.log")],
-                cwd=tmp_path, stdin=vsim_in, stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL, env={**os.environ, "TERM": "xterm"}):
-            time.sleep(START_S)
-            started_s = time.monotonic()
-            drive = subprocess.run(
-                [str(VENV_BIN / "overdrive"), "drive", "--profile", "plain", "--xgv",
-                 f"{NODE_JUDP[0]}:{NODE_JUDP[1]}", "--bind", f"{CLIENT_BIND[0]}:{CLIENT_BIND[1]}",
-                 "--out", str(run), "--quiet", str(SCENARIO)],
-                capture_output=True, text=True, timeout=DRIVE_TIMEOUT_S, check=False, cwd=PROJECT)
-            drive_s = time.monotonic() - started_s
-            time.sleep(0.3)          # one more screen after the release
-            os.write(vsim_in, b"\x1b")
-            os.write(nm_in, b"\x1b")
-            time.sleep(0.5)
-    finally:
-        os.close(nm_in)
-        os.close(vsim_in)
+    with openjaus_vehicle_sim(tmp_path, kit, openjaus_vsim):
+        started_s = time.monotonic()
+        drive = subprocess.run(
+            [str(VENV_BIN / "overdrive"), "drive", "--profile", "plain", "--xgv",
+             f"{NODE_JUDP[0]}:{NODE_JUDP[1]}", "--bind", f"{CLIENT_BIND[0]}:{CLIENT_BIND[1]}",
+             "--out", str(run), "--quiet", str(SCENARIO)],
+            capture_output=True, text=True, timeout=DRIVE_TIMEOUT_S, check=False, cwd=PROJECT)
+        drive_s = time.monotonic() - started_s
+        time.sleep(0.3)          # one more screen after the release
     assert (run / "summary.json").exists(), drive.stdout + drive.stderr
     summary = json.loads((run / "summary.json").read_text())
     with open(run / "trace.csv") as f:

@@ -11,14 +11,12 @@ the test skips if a port it needs is taken. ojVehicleSim is an ncurses program: 
 
 from __future__ import annotations
 
-import os
 import shutil
-import subprocess
 import time
 from pathlib import Path
 
 import pytest
-from processes import started
+from processes import openjaus_vehicle_sim
 
 from overdrive.jaus import JausId
 from overdrive.messages import PedalCommand, Topic
@@ -31,7 +29,6 @@ pytestmark = pytest.mark.interop
 NODE_JUDP = ("127.0.0.2", 3794)
 CLIENT_BIND = ("127.0.0.3", 3794)
 VELOCITY_STATE_SENSOR = 42   # ojVehicleSim's component ids (its config/)
-START_S = 4.0                # node manager and vehicle up (kit example script: 2 s + 4 s)
 DRIVE_S = 8.0
 PERIOD_S = 0.01
 
@@ -40,34 +37,16 @@ def test_client_holds_control_of_openjaus_vehicle_sim(openjaus_vsim: Path, kit: 
                                                       tmp_path: Path) -> None:
     if shutil.which("script") is None:
         pytest.skip("`script` (util-linux) is needed to give ojVehicleSim a terminal")
-    build = openjaus_vsim
-    shutil.copy(kit / "nodeManager_vsim.conf", tmp_path / "nodeManager.conf")
-    shutil.copytree(build / "openjaus/ojVehicleSim/config", tmp_path / "config")
-    for fifo in ("nm_in", "vsim_in"):
-        os.mkfifo(tmp_path / fifo)
-    nm_in = os.open(tmp_path / "nm_in", os.O_RDWR)
-    vsim_in = os.open(tmp_path / "vsim_in", os.O_RDWR)
     port = UdpPort(NODE_JUDP, bind=CLIENT_BIND)
     try:
         try:
             port.receive()   # binds now: skip rather than fail when the port is taken
         except OSError as exc:
             pytest.skip(f"{CLIENT_BIND[0]}:{CLIENT_BIND[1]} is taken ({exc})")
-        with open(tmp_path / "nm.log", "w") as nm_log, started(
-                [str(build / "ojNodeManager")], cwd=tmp_path, stdin=nm_in, stdout=nm_log,
-                stderr=subprocess.STDOUT), started(
-                ["script", "-qfc", str(build / "ojVehicleSim"), str(tmp_path / "vsim.log")],
-                cwd=tmp_path, stdin=vsim_in, stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL, env={**os.environ, "TERM": "xterm"}):
-            time.sleep(START_S)
+        with openjaus_vehicle_sim(tmp_path, kit, openjaus_vsim):
             client, held = drive(port)
-            os.write(vsim_in, b"\x1b")
-            os.write(nm_in, b"\x1b")
-            time.sleep(0.5)
     finally:
         port.close()
-        os.close(nm_in)
-        os.close(vsim_in)
     faults = [n.code for n in client.notices]
     print(f"control {held}; speed {client.speed_mps:.2f} m/s; registered {client.registered}; "
           f"notices {faults}; stats {client.stats}")

@@ -8,7 +8,6 @@ client's own view of itself. Attacks that found nothing are kept only as a few r
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
 import msgspec
@@ -29,7 +28,6 @@ from overdrive.jaus import (
     encode_datagram,
 )
 from overdrive.messages import GpsIns, PedalCommand, Topic, VehicleStatus
-from overdrive.sim import build_nodes, run_scenario
 from overdrive.vehicle.plain_jaus import (
     REPORT_SKEW_S,
     SPEED_CHECK_SIGMAS,
@@ -38,7 +36,6 @@ from overdrive.vehicle.plain_jaus import (
     SpeedCheck,
 )
 from overdrive.vehicle.xgv_client import REGISTRATION_GRACE_S, XgvClient
-from overdrive.xgv_link import lockstep_nodes
 from tests.conftest import PRESET_NAMES
 from tests.xgv.test_xgv_plain_profile import (
     GPOS,
@@ -49,10 +46,10 @@ from tests.xgv.test_xgv_plain_profile import (
     controlling,
     deliver,
     fix,
-    ready,
     report,
     sent,
 )
+from tests.xgv.test_xgv_plain_review import hooked_run
 
 LATER_S = REGISTRATION_GRACE_S + 1.0   # past OpenJAUS's registration grace: a Reject is real
 MOVE_M = 12.0                          # openjaus-wrench-drive.yaml's move
@@ -77,26 +74,6 @@ def mode(out: dict[str, Any]) -> str:
 
 
 # ---------------------------------------------------------------- lock-step harness
-
-Hook = Callable[[Any, Any, float], Any]
-
-
-def hooked_run(preset: str, hook: Hook) -> Any:
-    """openjaus-wrench-drive.yaml against the simulated XGV read as a plain vehicle, with
-    ``hook(simulator, report, now_s)`` rewriting every report the vehicle sends."""
-    scenario = ready("openjaus-wrench-drive.yaml", preset)
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    nodes = lockstep_nodes(scenario, build_nodes(embedded)[1:], profile="plain")
-    simulator = nodes[0].simulator
-    original = simulator._report
-
-    def rewritten(cid: int, code: int, presence: int, now_s: float) -> Any:
-        message = original(cid, code, presence, now_s)
-        return message if message is None else hook(simulator, message, now_s)
-
-    simulator._report = rewritten
-    return run_scenario(scenario, None, keep_trace=True, nodes=nodes, plot=False)
 
 
 def judged(summary: dict) -> list[str]:
@@ -132,7 +109,7 @@ def test_velocity_state_reading_low_while_the_pose_moves_stops_the_vehicle(
             return msgspec.structs.replace(m, velocity_x_mps=scale * m.velocity_x_mps)
         return m
 
-    result = hooked_run(preset, low_speed)
+    result = hooked_run("openjaus-wrench-drive.yaml", preset, low_speed)
     top_mps = max(float(r["speed_mps"]) for r in result.trace)
     assert top_mps <= MAX_SPEED_MPS + 0.3, top_mps           # ground truth, not the stack's
     assert result.summary["odometer_m"] <= MOVE_M + 1.0, result.summary["odometer_m"]
