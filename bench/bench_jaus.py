@@ -39,7 +39,10 @@ from overdrive.jaus import (
     Message,
     Motion,
     ReportComponentControl,
+    ReportConfiguration,
     ReportErrorCount,
+    ReportIdentification,
+    ReportServices,
     ReportVelocityState,
     SetMotionProfile,
     SetWrenchEffort,
@@ -51,7 +54,7 @@ from overdrive.jaus import (
     message_types,
 )
 from overdrive.jaus.layout import PresenceLayout, ScaledWire
-from overdrive.jaus.messages import MILLIS_U16, TIMESTAMP
+from overdrive.jaus.messages import MILLIS_U16, TIMESTAMP, ConfigurationNode, Service
 
 TARGET_PAIRS_PER_S = 200_000
 INT_BOUNDS = {"B": (0, 0xFF), "H": (0, 0xFFFF), "I": (0, 0xFFFFFFFF), "i": (-(2**31), 2**31 - 1)}
@@ -162,6 +165,19 @@ def random_message(cls: type[Message], rng: random.Random) -> Message:
         return ReportErrorCount(counts=counts, header=header)
     if cls is ReportComponentControl:
         return ReportComponentControl(JausId(u8(), u8(), u8(), u8()), u8(), header)
+    if cls is ReportIdentification:
+        text = "".join(chr(rng.randrange(32, 127)) for _ in range(rng.randint(0, 40)))
+        return ReportIdentification(u8(), u8(), rng.randrange(0x10000), text, header)
+    if cls is ReportConfiguration:
+        nodes = tuple(ConfigurationNode(u8(), tuple((u8(), u8()) for _ in range(rng.randint(0, 4))))
+                      for _ in range(rng.randint(0, 3)))
+        return ReportConfiguration(nodes, header)
+    if cls is ReportServices:
+        pairs = lambda: tuple((rng.randrange(0x10000), rng.randrange(2**32))  # noqa: E731
+                              for _ in range(rng.randint(0, 3)))
+        services = tuple(Service(rng.randrange(0x10000), pairs(), pairs())
+                         for _ in range(rng.randint(0, 3)))
+        return ReportServices(services, header)
     layout = cls.layout  # type: ignore[attr-defined]
     optional = isinstance(layout, PresenceLayout)
     values = {
