@@ -95,13 +95,18 @@ def test_node_manager_and_component_drive_xgv_sim(openjaus: Path, kit: Path,
     confirm, rejects, _, velocity, vx, modes, statuses = summary.groups()
     assert result.returncode == 0 and confirm == "0" and float(vx) > 0.5, out
     received = {int(code, 16): int(n) for code, n in re.findall(r"0x([0-9A-F]{4}) x(\d+)", out)}
-    # every report the XGV sent the component arrived (the service connections ended a second
-    # before ojcmpt exits, so none is in flight)
+    # every report the XGV sent the component arrived, except at most the last of each service
+    # connection: ojcmpt ends its connections a second before it exits, and OpenJAUS's scManager
+    # destroys a report for a connection it has ended (scManagerReceiveMessage), so a report the
+    # XGV sent while the Terminate Service Connection was on its way is refused by design (seen
+    # once on a loaded host: 45 of 46). A starved ojcmpt would lose more (its connections queue
+    # one report, the newest kept): that would fail here
     for code in (0x4404, 0xE456, 0x4002):
-        assert received.get(code, 0) == xgv.sent[(CLIENT, code)] > 0, (hex(code), out)
-    assert int(velocity) == xgv.sent[(CLIENT, 0x4404)]
-    assert int(modes) == xgv.sent[(CLIENT, 0xE456)]
-    assert int(statuses) >= xgv.sent[(CLIENT, 0x4002)]
+        sent = xgv.sent[(CLIENT, code)]
+        assert sent > 0 and sent - 1 <= received.get(code, 0) <= sent, (hex(code), sent, out)
+    assert xgv.sent[(CLIENT, 0x4404)] - 1 <= int(velocity) <= xgv.sent[(CLIENT, 0x4404)]
+    assert xgv.sent[(CLIENT, 0xE456)] - 1 <= int(modes) <= xgv.sent[(CLIENT, 0xE456)]
+    assert int(statuses) >= xgv.sent[(CLIENT, 0x4002)] - 1
     # heartbeats: to the node manager, one per second, and to the component, all delivered
     assert xgv.sent[(NODE_MANAGER, 0x4202)] >= 5
     assert received.get(0x4202, 0) >= xgv.sent[(CLIENT, 0x4202)] > 0

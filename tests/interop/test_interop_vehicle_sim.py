@@ -21,7 +21,7 @@ from processes import openjaus_vehicle_sim
 from overdrive.jaus import JausId
 from overdrive.messages import PedalCommand, Topic
 from overdrive.vehicle.presets import PRESETS
-from overdrive.vehicle.xgv_client import XgvClient, XgvClientConfig
+from overdrive.vehicle.xgv_client import REGISTRATION_SETTLE_S, XgvClient, XgvClientConfig
 from overdrive.xgv_link import UdpPort
 
 pytestmark = pytest.mark.interop
@@ -58,7 +58,8 @@ def test_client_holds_control_of_openjaus_vehicle_sim(openjaus_vsim: Path, kit: 
 
 def drive(port: UdpPort) -> tuple[XgvClient, dict[str, float]]:
     """The client at 100 Hz with 30 % throttle for ``DRIVE_S`` (and 2 s to register first);
-    returns it and when control was first held, lost after registration (count) and last held."""
+    returns it and when control was first held, lost once OpenJAUS knew us (steps without it after
+    registration had settled) and last held."""
     client = XgvClient(PRESETS["escape-hybrid"], XgvClientConfig(
         client_id=JausId(1, 2, 4, 1), velocity_component=VELOCITY_STATE_SENSOR))
     throttle = PedalCommand(throttle_pct=30.0, brake_pct=0.0, source="speed")
@@ -76,8 +77,9 @@ def drive(port: UdpPort) -> tuple[XgvClient, dict[str, float]]:
             if held["first_s"] < 0.0:
                 held["first_s"] = now
             held["last_s"] = now
-        elif had and client.registered:
-            held["losses"] += 1
+        elif had and now >= client.registered_s + REGISTRATION_SETTLE_S:
+            held["losses"] += 1   # a Reject just after OpenJAUS asked our configuration, before
+            # our answer reached its system tree, is retried quietly (seen on a loaded host)
         had = client.control and client.registered
         time.sleep(PERIOD_S)
     return client, held
