@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test test-under-load lint bench clean coverage-gate interop test-variants
+.PHONY: run test test-under-load launch-under-load lint bench clean coverage-gate interop test-variants
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -43,6 +43,11 @@ interop: $(STAMP)
 # Issue 20: the whole suite while two busy loops occupy both cores (stopped by PID on any exit).
 test-under-load: $(STAMP)
 	scripts/test-under-load.sh
+
+# Issue 20: `overdrive launch` of the demo and a 60 s MOVE under two busy loops, each compared with
+# its embedded run (exit 0, no violation, final position within 0.5 m).
+launch-under-load: $(STAMP)
+	$(PY) scripts/launch_under_load.py
 
 coverage-gate: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider $(SAFETY_TESTS) --no-header \
