@@ -35,7 +35,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import msgspec
 
@@ -116,11 +116,52 @@ def stack_registry() -> Registry:
     return registry
 
 
+LISTEN_PORTS: Final = (20000, 32768)
+"""Where listening ports are picked: below Linux's default ephemeral range (32768-60999), from
+which the kernel takes both ``bind(port 0)`` answers and the source ports of outgoing
+connections. A port picked there could be handed out twice, or taken by a peer's dial before
+the node binds it (seen under load: the speed node could not listen and the run failed)."""
+
+
+def _ephemeral_range() -> tuple[int, int]:
+    try:
+        lo, hi = Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()
+        return int(lo), int(hi)
+    except (OSError, ValueError):
+        return 32768, 60999
+
+
+def free_ports(count: int, taken: frozenset[int] = frozenset()) -> list[int]:
+    """``count`` distinct TCP ports free on 127.0.0.1 now, outside the ephemeral range."""
+    import random
+
+    eph_lo, eph_hi = _ephemeral_range()
+    pick = random.SystemRandom()   # not the scenario's seeded RNG: ports never reach a trace
+    ports: list[int] = []
+    for _ in range(2000):
+        if len(ports) == count:
+            return ports
+        port = pick.randrange(*LISTEN_PORTS)
+        if port in ports or port in taken or eph_lo <= port <= eph_hi:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        ports.append(port)
+    raise RuntimeError(f"no {count} free TCP ports in {LISTEN_PORTS[0]}-{LISTEN_PORTS[1] - 1}")
+
+
+def _endpoint_port(endpoint: str) -> int | None:
+    """The port of a ``tcp/HOST:PORT`` endpoint, else None."""
+    _, _, port = (endpoint or "").rpartition(":")
+    return int(port) if port.isdigit() else None
+
+
 def free_port() -> int:
-    """A TCP port free on 127.0.0.1 now (bind to port 0)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A TCP port free on 127.0.0.1 now, outside the ephemeral range (``free_ports``)."""
+    return free_ports(1)[0]
 
 
 # --------------------------------------------------------------------------- nodes
@@ -349,12 +390,14 @@ class Launch:
         self.work_dir = work
         self.procs: dict[str, NodeProcess] = {}
         endpoints: list[str] = []
-        for cli in self.names:
-            endpoint = f"tcp/127.0.0.1:{free_port()}"
+        public = _endpoint_port(self.listen)
+        ports = free_ports(len(self.names) + 1, frozenset({public} if public else ()))
+        for cli, port in zip(self.names, ports, strict=False):
+            endpoint = f"tcp/127.0.0.1:{port}"
             self.procs[cli] = NodeProcess(cli, endpoint, list(endpoints), work / "nodes" / f"{cli}.json")
             endpoints.append(endpoint)
         self.access: RunAccess | None = None
-        self.gate_listen = f"tcp/127.0.0.1:{free_port()}" if self.secure and self.listen else ""
+        self.gate_listen = f"tcp/127.0.0.1:{ports[-1]}" if self.secure and self.listen else ""
         self.gate: subprocess.Popen | None = None
         if self.secure:
             import secrets

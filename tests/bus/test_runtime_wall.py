@@ -245,6 +245,53 @@ def test_every_command_triggers_a_step_in_order_and_fixed_rate_nodes_never_trigg
     assert received == [0, 1, 2, 3, 4], "each command once, in order"
 
 
+def test_a_burst_of_commands_published_together_is_read_in_one_step() -> None:
+    """The move server publishes steering, max speed, authorization and mode back to back: the
+    driving module steps once on them, not once each (it stepped at 245 Hz fed at 100 Hz). The
+    rest of the burst arrives while the runtime waits ``TRIGGER_BURST_S`` after the first."""
+    from overdrive.runtime_wall import TRIGGER_BURST_S
+
+    bus = _ThreadedBus()
+    driven = _Recorder("driving", LONG_PERIOD_S, ("a", "b", "c", "d"), triggers=("a", "b", "c", "d"))
+    rest: list[str] = []
+
+    def sleep(duration_s: float) -> None:
+        if duration_s == TRIGGER_BURST_S:
+            while rest:
+                bus.deliver(rest[0], rest.pop(0))
+        time.sleep(duration_s)
+    rt = WallRuntime([driven], bus, sleep=sleep)
+
+    def feed() -> bool:
+        if len(driven.calls) == 1 and not fed:
+            fed.append(True)
+            rest.extend(("b", "c", "d"))
+            bus.deliver("a", "a")
+        return len(driven.calls) >= 2
+    fed: list[bool] = []
+    _run_until(rt, feed)
+    assert rt.stats()["driving"]["triggered"] == 1
+    assert [m for _, m in driven.calls[1][1]] == ["a", "b", "c", "d"]
+
+
+def test_a_node_with_one_command_topic_steps_without_the_burst_wait() -> None:
+    from overdrive.runtime_wall import TRIGGER_BURST_S
+
+    bus = _ThreadedBus()
+    node = _Recorder("speed", LONG_PERIOD_S, (Topic.SET_SPEED,))
+    waits: list[float] = []
+    rt = WallRuntime([node], bus, sleep=lambda s: (waits.append(s), time.sleep(s)))
+    sent: list[int] = []
+
+    def feed() -> bool:
+        if len(node.calls) == 1 and not sent:
+            sent.append(1)
+            bus.deliver(Topic.SET_SPEED, 1)
+        return len(node.calls) >= 2
+    _run_until(rt, feed)
+    assert rt.stats()["speed"]["triggered"] == 1 and TRIGGER_BURST_S not in waits
+
+
 def test_event_driven_off_keeps_the_pure_periodic_schedule() -> None:
     bus = _ThreadedBus()
     node = _Recorder("speed", LONG_PERIOD_S, (Topic.SET_SPEED,))

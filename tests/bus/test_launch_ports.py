@@ -1,0 +1,41 @@
+"""The launcher's listening ports: distinct, free, and never where the kernel hands out ports
+for outgoing connections (a node that could not bind its port failed a run under load)."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from overdrive import launch
+from overdrive.launch import LISTEN_PORTS, _endpoint_port, free_ports
+
+
+def test_ports_are_distinct_free_and_outside_the_ephemeral_range() -> None:
+    lo, hi = launch._ephemeral_range()
+    for _ in range(20):
+        ports = free_ports(6)
+        assert len(set(ports)) == 6
+        assert all(LISTEN_PORTS[0] <= p < LISTEN_PORTS[1] and not lo <= p <= hi for p in ports)
+        for port in ports:
+            with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+                s.bind(("127.0.0.1", port))
+
+
+def test_a_port_in_use_or_reserved_is_never_picked(monkeypatch: pytest.MonkeyPatch) -> None:
+    busy = 25000
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as held:
+        try:
+            held.bind(("127.0.0.1", busy))
+        except OSError:
+            pytest.skip(f"port {busy} is in use on this host")
+        held.listen()
+        monkeypatch.setattr(launch, "LISTEN_PORTS", (busy, busy + 3))
+        assert free_ports(1, taken=frozenset({busy + 1})) == [busy + 2]
+        with pytest.raises(RuntimeError, match="no 2 free TCP ports"):
+            free_ports(2, taken=frozenset({busy + 1}))
+
+
+def test_endpoint_port() -> None:
+    assert _endpoint_port("tcp/127.0.0.1:7447") == 7447
+    assert _endpoint_port("") is None and _endpoint_port("tcp/[::1]:x") is None
