@@ -98,7 +98,8 @@ class _Relay:
     def __init__(self, name: str, inbound: str, outbound: str) -> None:
         self.name, self.outbound = name, outbound
         # a command: step as soon as it arrives (issue 20); the driving module is woken by four
-        # command topics and so waits the runtime's burst window: its relay does too
+        # command topics and so waits the runtime's burst window: its relay does too (the extra
+        # topic is never published; it only makes the relay a several-command node)
         extra = ("bench/driving-steering",) if name == "driving" else ()
         self.subscriptions = self.triggers = (inbound, *extra)
 

@@ -14,6 +14,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -42,15 +43,20 @@ def final(run_dir: Path) -> dict:
 
 def one(scenario: str, load: int, out: Path) -> dict:
     embedded_dir, launched_dir = out / "embedded", out / "launched"
+    shutil.rmtree(out, ignore_errors=True)   # never judge an earlier run's summary
     subprocess.run([str(BIN / "overdrive"), "sim", scenario, "--out", str(embedded_dir), "--quiet"],
-                   check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+                   check=False, cwd=ROOT, stdout=subprocess.DEVNULL)
     embedded = final(embedded_dir)
     limit_s = embedded["sim_time_s"] + LAUNCH_OVERHEAD_S
     loops = busy_loops(load, limit_s + 10)
     try:
-        code = subprocess.run([str(BIN / "overdrive"), "launch", scenario, "--out", str(launched_dir),
-                               "--quiet", "--no-plot", "--listen", f"tcp/127.0.0.1:{free_port()}"],
-                              cwd=ROOT, timeout=limit_s, stdout=subprocess.DEVNULL).returncode
+        try:
+            code: int | str = subprocess.run(
+                [str(BIN / "overdrive"), "launch", scenario, "--out", str(launched_dir), "--quiet",
+                 "--no-plot", "--listen", f"tcp/127.0.0.1:{free_port()}"],
+                cwd=ROOT, timeout=limit_s, stdout=subprocess.DEVNULL).returncode
+        except subprocess.TimeoutExpired:
+            code = "timeout"
     finally:
         for p in loops:
             p.kill()

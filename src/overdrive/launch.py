@@ -132,25 +132,31 @@ def _ephemeral_range() -> tuple[int, int]:
 
 
 def free_ports(count: int, taken: frozenset[int] = frozenset()) -> list[int]:
-    """``count`` distinct TCP ports free on 127.0.0.1 now, outside the ephemeral range."""
+    """``count`` distinct TCP ports free on 127.0.0.1 now, in ``LISTEN_PORTS`` outside the
+    ephemeral range; where that range covers them all (a host tuned to ``1024 65535``), distinct
+    ports from ``bind(port 0)``."""
     import random
 
     eph_lo, eph_hi = _ephemeral_range()
+    lo, hi = LISTEN_PORTS
+    outside = not (eph_lo <= lo and hi - 1 <= eph_hi)
     pick = random.SystemRandom()   # not the scenario's seeded RNG: ports never reach a trace
     ports: list[int] = []
     for _ in range(2000):
-        if len(ports) == count:
-            return ports
-        port = pick.randrange(*LISTEN_PORTS)
-        if port in ports or port in taken or eph_lo <= port <= eph_hi:
-            continue
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            port = pick.randrange(lo, hi) if outside else 0
+            if port in ports or port in taken or (port and eph_lo <= port <= eph_hi):
+                continue
             try:
                 s.bind(("127.0.0.1", port))
             except OSError:
                 continue
-        ports.append(port)
-    raise RuntimeError(f"no {count} free TCP ports in {LISTEN_PORTS[0]}-{LISTEN_PORTS[1] - 1}")
+            port = s.getsockname()[1]
+        if port not in ports and port not in taken:
+            ports.append(port)
+            if len(ports) == count:
+                return ports
+    raise RuntimeError(f"could not find {count} free TCP ports on 127.0.0.1")
 
 
 def _endpoint_port(endpoint: str) -> int | None:
@@ -392,7 +398,7 @@ class Launch:
         endpoints: list[str] = []
         public = _endpoint_port(self.listen)
         ports = free_ports(len(self.names) + 1, frozenset({public} if public else ()))
-        for cli, port in zip(self.names, ports, strict=False):
+        for cli, port in zip(self.names, ports[:-1], strict=True):
             endpoint = f"tcp/127.0.0.1:{port}"
             self.procs[cli] = NodeProcess(cli, endpoint, list(endpoints), work / "nodes" / f"{cli}.json")
             endpoints.append(endpoint)

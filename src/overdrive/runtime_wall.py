@@ -171,7 +171,8 @@ class WallRuntime:
         self._wake: threading.Event | None = None
         """Set by a bus thread when a trigger arrives (only with inboxes that support it)."""
         self._burst_s = 0.0
-        """``TRIGGER_BURST_S`` when a node here has more than one trigger topic, else 0."""
+        """``TRIGGER_BURST_S`` when a node here has more than one trigger topic, else 0; waited
+        only when such a node is among those woken."""
         for slot in self._slots if event_driven else ():
             node = slot.node
             triggers = getattr(node, "triggers", None)
@@ -246,7 +247,8 @@ class WallRuntime:
                 break
             if woken:
                 assert wake is not None
-                if self._burst_s:
+                if self._burst_s and any(getattr(s.inbox, "triggered", False)
+                                         and len(s.inbox.triggers) > 1 for s in slots):
                     self.sleep(self._burst_s)
                 wake.clear()
                 t = clock()

@@ -27,13 +27,22 @@ def test_a_port_in_use_or_reserved_is_never_picked(monkeypatch: pytest.MonkeyPat
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as held:
         try:
             held.bind(("127.0.0.1", busy))
+            with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+                probe.bind(("127.0.0.1", busy + 2))
         except OSError:
-            pytest.skip(f"port {busy} is in use on this host")
+            pytest.skip(f"port {busy} or {busy + 2} is in use on this host")
         held.listen()
         monkeypatch.setattr(launch, "LISTEN_PORTS", (busy, busy + 3))
         assert free_ports(1, taken=frozenset({busy + 1})) == [busy + 2]
-        with pytest.raises(RuntimeError, match="no 2 free TCP ports"):
+        with pytest.raises(RuntimeError, match="could not find 2 free TCP ports"):
             free_ports(2, taken=frozenset({busy + 1}))
+
+
+def test_a_host_whose_ephemeral_range_covers_the_window_gets_bind_zero_ports(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(launch, "_ephemeral_range", lambda: (1024, 65535))
+    ports = free_ports(6)
+    assert len(set(ports)) == 6 and all(1024 <= p <= 65535 for p in ports)
 
 
 def test_endpoint_port() -> None:
