@@ -26,6 +26,7 @@ import contextlib
 import json
 import math
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -135,8 +136,6 @@ def free_ports(count: int, taken: frozenset[int] = frozenset()) -> list[int]:
     """``count`` distinct TCP ports free on 127.0.0.1 now, in ``LISTEN_PORTS`` outside the
     ephemeral range; where that range covers them all (a host tuned to ``1024 65535``), distinct
     ports from ``bind(port 0)``."""
-    import random
-
     eph_lo, eph_hi = _ephemeral_range()
     lo, hi = LISTEN_PORTS
     outside = not (eph_lo <= lo and hi - 1 <= eph_hi)
@@ -144,18 +143,16 @@ def free_ports(count: int, taken: frozenset[int] = frozenset()) -> list[int]:
     ports: list[int] = []
     for _ in range(2000):
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            port = pick.randrange(lo, hi) if outside else 0
-            if port in ports or port in taken or (port and eph_lo <= port <= eph_hi):
-                continue
             try:
-                s.bind(("127.0.0.1", port))
+                s.bind(("127.0.0.1", pick.randrange(lo, hi) if outside else 0))
             except OSError:
                 continue
             port = s.getsockname()[1]
-        if port not in ports and port not in taken:
-            ports.append(port)
-            if len(ports) == count:
-                return ports
+        if port in ports or port in taken or (outside and eph_lo <= port <= eph_hi):
+            continue
+        ports.append(port)
+        if len(ports) == count:
+            return ports
     raise RuntimeError(f"could not find {count} free TCP ports on 127.0.0.1")
 
 

@@ -170,9 +170,8 @@ class WallRuntime:
                        for n in nodes]
         self._wake: threading.Event | None = None
         """Set by a bus thread when a trigger arrives (only with inboxes that support it)."""
-        self._burst_s = 0.0
-        """``TRIGGER_BURST_S`` when a node here has more than one trigger topic, else 0; waited
-        only when such a node is among those woken."""
+        self._burst_slots: list[_Slot] = []
+        """Nodes woken by several command topics: a wake-up of one waits ``TRIGGER_BURST_S``."""
         for slot in self._slots if event_driven else ():
             node = slot.node
             triggers = getattr(node, "triggers", None)
@@ -183,7 +182,7 @@ class WallRuntime:
                 slot.inbox.triggers = frozenset(triggers)
                 slot.inbox.wake = self._wake
                 if len(slot.inbox.triggers) > 1:
-                    self._burst_s = TRIGGER_BURST_S
+                    self._burst_slots.append(slot)
         self.start_s: float | None = None
         self._stop = False
         self.lag_notices: list[Notice] = []
@@ -247,9 +246,8 @@ class WallRuntime:
                 break
             if woken:
                 assert wake is not None
-                if self._burst_s and any(getattr(s.inbox, "triggered", False)
-                                         and len(s.inbox.triggers) > 1 for s in slots):
-                    self.sleep(self._burst_s)
+                if any(s.inbox.triggered for s in self._burst_slots):
+                    self.sleep(TRIGGER_BURST_S)
                 wake.clear()
                 t = clock()
                 if t < start:              # before the shared epoch: the first step will read it
