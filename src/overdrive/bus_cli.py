@@ -152,6 +152,9 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return
+    except RuntimeError as exc:   # no free ports for the nodes
+        click.echo(f"error: {exc}", err=True)
+        raise SystemExit(EXIT_VIOLATION) from None
     interrupted = threading.Event()
 
     def on_signal(_signum: int, _frame: Any) -> None:
@@ -380,10 +383,12 @@ def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[
 @click.option("--access", "access_dir", required=True,
               type=click.Path(file_okay=False, exists=True, path_type=Path))
 @click.option("--report", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--ready", "ready_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Written once both sessions listen (the launcher waits for it).")
 @click.option("--vehicle", default=DEFAULT_VEHICLE, show_default=True)
 @click.option("--allow-remote", is_flag=True)
 def gate(public: str, listen: str, connect: tuple[str, ...], access_dir: Path,
-         report: Path | None, vehicle: str, allow_remote: bool) -> None:
+         report: Path | None, ready_path: Path | None, vehicle: str, allow_remote: bool) -> None:
     """The tool gate of a locked-down launch (started by ``overdrive launch``)."""
     from overdrive.bus.tool_gate import run_tool_gate
     from overdrive.bus.zenoh_bus import _check_endpoint
@@ -397,7 +402,7 @@ def gate(public: str, listen: str, connect: tuple[str, ...], access_dir: Path,
     raise SystemExit(run_tool_gate(
         public=public, listen=listen, connect=list(connect), vehicle=vehicle,
         access_dir=access_dir, registry=stack_registry(), report_path=report,
-        password=os.environ.get(PASSWORD_ENV, "")))
+        password=os.environ.get(PASSWORD_ENV, ""), ready_path=ready_path))
 
 
 @click.group()

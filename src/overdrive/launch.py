@@ -132,23 +132,25 @@ def _ephemeral_range() -> tuple[int, int]:
         return 32768, 60999
 
 
+WINDOW_TRIES: Final = 500   # random picks in LISTEN_PORTS before falling back to bind(0)
+
+
 def free_ports(count: int, taken: frozenset[int] = frozenset()) -> list[int]:
-    """``count`` distinct TCP ports free on 127.0.0.1 now, in ``LISTEN_PORTS`` outside the
-    ephemeral range; where that range covers them all (a host tuned to ``1024 65535``), distinct
-    ports from ``bind(port 0)``."""
+    """``count`` distinct TCP ports free on 127.0.0.1 now: in ``LISTEN_PORTS`` outside the
+    ephemeral range, and where too few of those are free (a host whose ephemeral range covers
+    the window), distinct ports from ``bind(port 0)``."""
     eph_lo, eph_hi = _ephemeral_range()
-    lo, hi = LISTEN_PORTS
-    outside = not (eph_lo <= lo and hi - 1 <= eph_hi)
     pick = random.SystemRandom()   # not the scenario's seeded RNG: ports never reach a trace
     ports: list[int] = []
-    for _ in range(2000):
+    for attempt in range(WINDOW_TRIES + 2000):
+        in_window = attempt < WINDOW_TRIES
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
             try:
-                s.bind(("127.0.0.1", pick.randrange(lo, hi) if outside else 0))
+                s.bind(("127.0.0.1", pick.randrange(*LISTEN_PORTS) if in_window else 0))
             except OSError:
                 continue
             port = s.getsockname()[1]
-        if port in ports or port in taken or (outside and eph_lo <= port <= eph_hi):
+        if port in ports or port in taken or (in_window and eph_lo <= port <= eph_hi):
             continue
         ports.append(port)
         if len(ports) == count:
@@ -468,20 +470,27 @@ class Launch:
         proc.expected_exit = False
         proc.restart_at_s = None
 
+    @property
+    def _gate_ready(self) -> Path:
+        return self.work_dir / "nodes" / "gate.ready"
+
     def _spawn_gate(self, connect: list[str]) -> None:
         """Start the tool gate: the run's public endpoint for pub/echo (``bus.tool_gate``)."""
         assert self.access is not None
+        self._gate_ready.unlink(missing_ok=True)
         cmd = [self.python, "-m", "overdrive.bus_cli", "gate", "--public", self.listen,
                "--listen", self.gate_listen, "--vehicle", self.vehicle,
                "--access", str(self.access.folder),
-               "--report", str(self.work_dir / "nodes" / "gate.json")]
+               "--report", str(self.work_dir / "nodes" / "gate.json"),
+               "--ready", str(self._gate_ready)]
         for endpoint in connect:
             cmd += ["--connect", endpoint]
         if self.allow_remote:
             cmd.append("--allow-remote")
         env = {**os.environ, "OVERDRIVE_ZENOH_PASSWORD": self.access.password(GATE_USER)}
         with open(self.work_dir / "nodes" / "gate.log", "ab") as log:
-            self.gate = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log, stderr=None,
+            self.gate = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
+                                         stderr=subprocess.STDOUT,
                                          env=env, start_new_session=True,
                                          preexec_fn=_die_with_parent)
 
@@ -583,12 +592,18 @@ class Launch:
             connect.append(self.gate_listen)
         password = self._credentials_for(LAUNCHER_USER)
         public = [self.listen] if self.listen and self.access is None else []  # else: the gate's
-        self.bus = open_bus(
-            sender=LAUNCHER_USER, listen=public, connect=connect, vehicle=self.vehicle,
-            registry=stack_registry(),
-            base_file=self.access.mesh_config if self.access is not None else self.base_file,
-            user=LAUNCHER_USER if password is not None else None, password=password,
-            allow_remote=self.allow_remote)
+        try:
+            self.bus = open_bus(
+                sender=LAUNCHER_USER, listen=public, connect=connect, vehicle=self.vehicle,
+                registry=stack_registry(),
+                base_file=self.access.mesh_config if self.access is not None else self.base_file,
+                user=LAUNCHER_USER if password is not None else None, password=password,
+                allow_remote=self.allow_remote)
+        except ValueError:
+            raise
+        except Exception as exc:   # zenoh.ZError: e.g. the --listen port is taken
+            raise RuntimeError(f"cannot open the launcher's session on {public or connect}: "
+                               f"{exc}") from None
         lock = threading.Lock()
         alive: set[str] = set()
         changed = threading.Event()
@@ -604,8 +619,14 @@ class Launch:
         while True:
             with lock:
                 missing = wanted - alive
+            if self.gate is not None and not self._gate_ready.exists():
+                missing = missing | {"gate"}
             if not missing:
                 return
+            if self.gate is not None and self.gate.poll() is not None:
+                raise RuntimeError(f"the tool gate exited during start-up (code "
+                                   f"{self.gate.returncode}): is {self.listen} or "
+                                   f"{self.gate_listen} taken? see nodes/gate.log")
             for proc in self.procs.values():
                 if proc.popen is not None and proc.popen.poll() is not None:
                     raise RuntimeError(f"node {proc.cli_name} exited during start-up "

@@ -34,8 +34,8 @@ def test_a_port_in_use_or_reserved_is_never_picked(monkeypatch: pytest.MonkeyPat
         held.listen()
         monkeypatch.setattr(launch, "LISTEN_PORTS", (busy, busy + 3))
         assert free_ports(1, taken=frozenset({busy + 1})) == [busy + 2]
-        with pytest.raises(RuntimeError, match="could not find 2 free TCP ports"):
-            free_ports(2, taken=frozenset({busy + 1}))
+        first, second = free_ports(2, taken=frozenset({busy + 1}))   # the window has one
+        assert first == busy + 2 and second not in (busy, busy + 1, busy + 2)   # then bind(0)
 
 
 def test_a_host_whose_ephemeral_range_covers_the_window_gets_bind_zero_ports(

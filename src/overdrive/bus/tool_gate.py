@@ -79,8 +79,9 @@ class ToolPolicy:
 
 def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str, access_dir: Path,
                   registry: Registry, report_path: Path | None, password: str,
-                  ready: threading.Event | None = None) -> int:
-    """Run the gate until SIGTERM/SIGINT; write its counts to ``report_path``. Returns 0."""
+                  ready: threading.Event | None = None, ready_path: Path | None = None) -> int:
+    """Run the gate until SIGTERM/SIGINT; write its counts to ``report_path``. Returns 0.
+    ``ready`` is set, and ``ready_path`` written, once both sessions listen."""
     zenoh.init_log_from_env_or(LOG_FILTER)
     access = RunAccess(access_dir, {})
     stop = threading.Event()
@@ -129,6 +130,8 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     relays: dict[str, Any] = {}                    # mesh subscriptions, only while a tool listens
     if ready is not None:
         ready.set()
+    if ready_path is not None:
+        ready_path.write_text("listening\n", encoding="utf-8")
     started = time.monotonic()
     try:
         while not stop.wait(INTEREST_POLL_S):
