@@ -598,7 +598,7 @@ class Launch:
                 registry=stack_registry(),
                 base_file=self.access.mesh_config if self.access is not None else self.base_file,
                 user=LAUNCHER_USER if password is not None else None, password=password,
-                allow_remote=self.allow_remote)
+                allow_remote=self.allow_remote, pull=True)
         except ValueError:
             raise
         except Exception as exc:   # zenoh.ZError: e.g. the --listen port is taken

@@ -267,6 +267,35 @@ def test_a_full_inbox_drops_stale_state_first_and_refuses_commands() -> None:
     assert inbox.drain() == [spss, spss, spss]
 
 
+@settings(max_examples=300, deadline=None)
+@given(ops=st.lists(st.one_of(st.sampled_from(["state", "command"]), st.just("drain")), max_size=60),
+       capacity=st.integers(1, 6))
+def test_an_inbox_keeps_arrival_order_drops_the_oldest_state_and_refuses_commands_when_full(
+        ops: list[str], capacity: int) -> None:
+    """Against a one-list model: same outcomes, same drained order (commands and state samples
+    are queued apart, numbered, and merged back)."""
+    inbox, model = SafeInbox(capacity=capacity), []
+    for n, op in enumerate(ops):
+        if op == "drain":
+            assert inbox.drain() == model
+            model = []
+            continue
+        envelope = (Topic.WHEEL_SPEED if op == "state" else Topic.SET_SPEED, n)
+        expected, kept = "", True
+        if len(model) >= capacity:
+            oldest_state = next((i for i, e in enumerate(model) if e[0] in STATE_TOPICS), None)
+            if oldest_state is None:     # only commands queued: the newcomer goes
+                expected, kept = ("stale_dropped" if op == "state" else "overflow"), False
+            else:
+                del model[oldest_state]
+                expected = "stale_dropped"
+        if kept:
+            model.append(envelope)
+        assert inbox.append(envelope) == expected
+        assert len(inbox) == len(model)
+    assert inbox.drain() == model
+
+
 class _Sample:
     def __init__(self, key: str, payload: bytes) -> None:
         self.key_expr, self.payload = key, zenoh.ZBytes(payload)

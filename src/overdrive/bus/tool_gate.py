@@ -10,6 +10,12 @@ outside the run) is dropped and counted by reason. Mesh traffic is forwarded, by
 to the tool side for the keys a tool subscribes to (and only then: the gate subscribes on the
 mesh to a topic only while a tool listens to it, so an idle gate costs the run nothing). The gate
 runs at normal priority: it is not part of the control loop.
+
+A tool can never hold the run back: the mesh-side relays queue samples in Zenoh ring channels
+(``RELAY_CAPACITY``; no Python on Zenoh's threads) and the gate's loop forwards them. When a
+tool or the gate falls behind, the oldest samples for the tool are dropped; a Python callback
+there would make the mesh link wait for the gate's GIL, and every node's blocking command
+publisher with it (issue 20).
 """
 
 from __future__ import annotations
@@ -30,6 +36,9 @@ from overdrive.bus.zenoh_bus import KEY_ROOT, session_config
 
 TOOL_SENDER = "tool"       # the sender a tool's admitted messages carry on the mesh
 INTEREST_POLL_S = 0.2      # how often the gate looks for tool subscribers (echo's first wait)
+RELAY_POLL_S = 0.002       # how often the gate forwards queued mesh samples to tools (2 ms late at most)
+RELAY_CAPACITY = 1024
+"""Samples queued per relayed key between two forwards: ~10 s of a 100 Hz topic."""
 EXTRA_TOPICS = ("move/estimates", "launch/clock", "sim/world", "sim/faults")
 """Topics without a fixed type in ``wire.TOPIC_TYPES`` that a tool may still want to read."""
 
@@ -119,11 +128,6 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
         if admitted is not None:
             publisher(mesh, inward, admitted[0]).put(admitted[1])
 
-    def to_tools(sample: zenoh.Sample) -> None:
-        pub = outward.get(str(sample.key_expr))
-        if pub is not None:
-            pub.put(sample.payload)
-
     for topic in forwarded_topics(registry):      # a tool can see that a key is subscribed
         publisher(tools, outward, prefix + topic)
     subs = [tools.declare_subscriber("**", from_tool, allowed_origin=zenoh.Locality.REMOTE)]
@@ -133,13 +137,22 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     if ready_path is not None:
         ready_path.write_text("listening\n", encoding="utf-8")
     started = time.monotonic()
+    next_interest_s = started
     try:
-        while not stop.wait(INTEREST_POLL_S):
+        while not stop.wait(RELAY_POLL_S):
+            for key, relay in relays.items():
+                pub = outward[key]
+                while (sample := relay.try_recv()) is not None:
+                    pub.put(sample.payload)
+            if time.monotonic() < next_interest_s:
+                continue
+            next_interest_s = time.monotonic() + INTEREST_POLL_S
             for key, pub in list(outward.items()):
                 wanted = pub.matching_status
                 if wanted and key not in relays:
-                    relays[key] = mesh.declare_subscriber(key, to_tools,
-                                                          allowed_origin=zenoh.Locality.REMOTE)
+                    relays[key] = mesh.declare_subscriber(
+                        key, zenoh.handlers.RingChannel(RELAY_CAPACITY),
+                        allowed_origin=zenoh.Locality.REMOTE)
                 elif not wanted and key in relays:
                     relays.pop(key).undeclare()
     finally:

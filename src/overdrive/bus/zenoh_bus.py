@@ -22,6 +22,19 @@ step, so a node still sees the messages received since its last step, in arrival
 (recording, ``overdrive echo``) are queued the same way and delivered by ``pump()`` on the
 runtime's thread, never on a Zenoh thread.
 
+Pull mode (``pull=True``, the launcher's bus): a Python callback needs the GIL. In a process
+whose own thread is busy (the launcher records and judges every message of the run), Zenoh's
+receiving thread waits for it, and on a loaded host the GIL holder may itself be descheduled;
+that link is then not read, and since commands are published with blocking congestion control,
+every node publishing to this process stalls on it, SPSS to the speed server included (issue 20).
+In pull mode one subscriber on ``**`` queues samples in Zenoh's own FIFO channel, with no Python
+on Zenoh's threads for data (liveliness changes, rare, still use a callback); ``pump()`` decodes
+them on the runtime's thread into the inboxes and taps (at most ``PULL_BATCH`` per pump). It is
+meant for a process that taps everything anyway: its links carry every topic. Pull mode has no
+wake-ups of its own: a trigger is seen when the runtime pumps (at its nodes' steps). This
+process's own publications reach its inboxes at once, policed like a received sample; a remote
+sample received earlier but not yet pumped then comes after them.
+
 Publisher policy: ``PUBLISHERS[topic]`` is the set of node names allowed to publish on it.
 A frame whose envelope ``sender`` is not in the set is dropped and counted, never delivered; for
 actuator commands the message's own ``source`` must also equal the sender. This is a check
@@ -38,6 +51,7 @@ leaves Zenoh's default ``tcp/[::]:0`` listener in place, and refuses endpoints o
 from __future__ import annotations
 
 import contextlib
+import heapq
 import ipaddress
 import json
 import math
@@ -45,6 +59,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -99,6 +114,13 @@ INBOX_CAPACITY = 1024
 TAP_CAPACITY = 65_536
 """Envelopes queued for taps (the recorder sees every message): ~60 s of a whole-stack run, so a
 launcher stalled for seconds on a loaded host loses nothing (~100 B each: ~7 MB at most)."""
+PULL_CAPACITY = 65_536
+"""Samples Zenoh queues for a pull-mode bus between two pumps: ~60 s of a whole-stack run. A full
+FIFO channel blocks Zenoh's receiving thread: the publishers' links back up (commands wait, state
+samples are dropped) and a link blocked for ``BLOCK_CLOSE_US`` closes."""
+PULL_BATCH = 4096
+"""Samples one ``pump()`` takes from the channel: ~4 s of a whole-stack run, so a backlog after
+a stall is worked off over a few steps instead of holding the runtime's thread for seconds."""
 BLOCK_CLOSE_US = 5_000_000
 """A command publisher blocked this long closes the link (Zenoh's default, stated explicitly):
 long enough for a loaded 2-core host, and the vehicle's 200 ms command timeout stops it first."""
@@ -176,10 +198,15 @@ class SafeInbox:
     ``wake`` and ``triggered`` so an event-driven runtime steps the node at once.
     """
 
-    __slots__ = ("_items", "_lock", "capacity", "triggered", "triggers", "wake")
+    __slots__ = ("_commands", "_lock", "_seq", "_states", "capacity", "triggered", "triggers",
+                 "wake")
 
     def __init__(self, capacity: int = INBOX_CAPACITY) -> None:
-        self._items: deque[Envelope] = deque()
+        # commands and state samples queue apart, numbered in arrival order: a full inbox drops
+        # its oldest state sample in O(1) instead of scanning past every queued command
+        self._commands: deque[tuple[int, Envelope]] = deque()
+        self._states: deque[tuple[int, Envelope]] = deque()
+        self._seq = 0
         self._lock = threading.Lock()
         self.capacity = capacity
         self.triggers: frozenset[str] = frozenset()
@@ -189,19 +216,15 @@ class SafeInbox:
     def append(self, envelope: Envelope) -> str:
         """Queue ``envelope``; returns ``""``, ``"stale_dropped"`` or ``"overflow"`` (refused)."""
         outcome = ""
+        state = envelope[0] in STATE_TOPICS
         with self._lock:
-            items = self._items
-            if len(items) >= self.capacity:
-                for i, (topic, _msg) in enumerate(items):
-                    if topic in STATE_TOPICS:
-                        del items[i]
-                        outcome = "stale_dropped"
-                        break
-                else:
-                    if envelope[0] not in STATE_TOPICS:
-                        return "overflow"
-                    return "stale_dropped"   # the newest state sample, when nothing older can go
-            items.append(envelope)
+            if len(self._commands) + len(self._states) >= self.capacity:
+                if not self._states:
+                    return "stale_dropped" if state else "overflow"   # nothing older can go
+                self._states.popleft()
+                outcome = "stale_dropped"
+            self._seq += 1
+            (self._states if state else self._commands).append((self._seq, envelope))
             if envelope[0] in self.triggers:
                 self.triggered = True
                 if self.wake is not None:
@@ -211,16 +234,21 @@ class SafeInbox:
     def drain(self) -> list[Envelope]:
         """Everything received since the last drain, in arrival order."""
         with self._lock:
-            items, self._items = self._items, deque()
+            commands, states = self._commands, self._states
+            self._commands, self._states = deque(), deque()
             self.triggered = False
-        return list(items)
+        if not states or not commands:
+            return [envelope for _seq, envelope in commands or states]
+        return [envelope for _seq, envelope in heapq.merge(commands, states, key=itemgetter(0))]
 
     def __len__(self) -> int:
-        return len(self._items)
+        return len(self._commands) + len(self._states)
 
 
 class BusStats:
-    """Counters of one bus; updated from Zenoh threads under the bus lock."""
+    """Counters of one bus; updated under the bus lock (from Zenoh threads, or pulling, the
+    runtime's). ``received`` counts admitted samples: per subscription with callbacks, per
+    sample in pull mode."""
 
     def __init__(self) -> None:
         self.published = 0
@@ -246,7 +274,7 @@ class ZenohBus:
     def __init__(self, session: zenoh.Session, *, sender: str, vehicle: str = DEFAULT_VEHICLE,
                  registry: Registry | None = None,
                  publishers: Mapping[str, frozenset[str]] | None = PUBLISHERS,
-                 own_session: bool = False, express: bool = True,
+                 own_session: bool = False, express: bool = True, pull: bool = False,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.session = session
         self.sender = sender
@@ -254,6 +282,8 @@ class ZenohBus:
         self.registry = registry or Registry()
         self.publishers = publishers
         self.express = express
+        self.pull = pull
+        """Receive through one FIFO-channel subscriber drained by ``pump()`` (see module doc)."""
         self.clock = clock
         """Stamps each frame's ``sent_s``: CLOCK_MONOTONIC, shared by the processes of a host."""
         self.channel: ChannelModel | None = None
@@ -272,6 +302,7 @@ class ZenohBus:
         self._overflow_once: set[str] = set()
         self._stamped_taps: list[Callable[[str, Any, float], None]] = []
         self._tokens: list[Any] = []
+        self._pulled: Any = None            # pull mode: the FIFO-channel subscriber on **
         self.closed = False
 
     # ------------------------------------------------------------------ receiving
@@ -285,38 +316,75 @@ class ZenohBus:
             with self._lock:
                 self.stats.decode_errors[exc.reason] = self.stats.decode_errors.get(exc.reason, 0) + 1
             return None
-        allowed = self.publishers.get(topic) if self.publishers is not None else None
-        if allowed is not None and (sender not in allowed or (
-                topic in SOURCE_MUST_MATCH and getattr(msg, "source", sender) != sender)):
-            label = f"{topic} from {sender[:40]!r}"
-            with self._lock:
-                self.stats.rejected[label] = self.stats.rejected.get(label, 0) + 1
-                first = label not in self._rejected_once
-                self._rejected_once.add(label)
-            if first:
-                self._notices.append(Notice(
-                    kind="rejected", source=self.sender, code="publisher",
-                    reason=f"{type(msg).__name__} on {topic} from {sender[:40]!r}, "
-                           f"allowed: {', '.join(sorted(allowed))}"))
+        if self._refused(topic, sender, msg):
             return None
         with self._lock:
             self.stats.received += 1
         return Stamped(topic, msg, sent_s)
 
+    def _refused(self, topic: str, sender: str, msg: Any) -> bool:
+        """True (counted, reported once) when the publisher policy refuses ``msg`` from ``sender``."""
+        allowed = self.publishers.get(topic) if self.publishers is not None else None
+        if allowed is None or (sender in allowed and (
+                topic not in SOURCE_MUST_MATCH or getattr(msg, "source", sender) == sender)):
+            return False
+        label = f"{topic} from {sender[:40]!r}"
+        with self._lock:
+            self.stats.rejected[label] = self.stats.rejected.get(label, 0) + 1
+            first = label not in self._rejected_once
+            self._rejected_once.add(label)
+        if first:
+            self._notices.append(Notice(
+                kind="rejected", source=self.sender, code="publisher",
+                reason=f"{type(msg).__name__} on {topic} from {sender[:40]!r}, "
+                       f"allowed: {', '.join(sorted(allowed))}"))
+        return True
+
+    def _deliver(self, sample: zenoh.Sample, inboxes: Iterable[SafeInbox]) -> None:
+        try:
+            envelope = self._admit(str(sample.key_expr), sample.payload.to_bytes())
+        except Exception:  # never let a frame kill a Zenoh thread (or the runtime's, pulling)
+            with self._lock:
+                self.stats.decode_errors["internal"] = self.stats.decode_errors.get("internal", 0) + 1
+            return
+        if envelope is not None:
+            self._append(envelope, inboxes)
+
+    def _append(self, envelope: Envelope, inboxes: Iterable[SafeInbox]) -> None:
+        for inbox in inboxes:
+            outcome = inbox.append(envelope)
+            if outcome:
+                self._count_full(outcome, envelope[0])
+
     def _callback(self, inboxes: list[SafeInbox]) -> Callable[[zenoh.Sample], None]:
         def deliver(sample: zenoh.Sample) -> None:
-            try:
-                envelope = self._admit(str(sample.key_expr), sample.payload.to_bytes())
-            except Exception:  # never let a frame kill a Zenoh thread
-                with self._lock:
-                    self.stats.decode_errors["internal"] = self.stats.decode_errors.get("internal", 0) + 1
-                return
-            if envelope is not None:
-                for inbox in inboxes:
-                    outcome = inbox.append(envelope)
-                    if outcome:
-                        self._count_full(outcome, envelope[0])
+            self._deliver(sample, inboxes)
         return deliver
+
+    def _pull_subscriber(self) -> None:
+        if self._pulled is None:
+            self._pulled = self.session.declare_subscriber(
+                self._prefix + "**", zenoh.handlers.FifoChannel(PULL_CAPACITY),
+                allowed_origin=zenoh.Locality.REMOTE)
+            self._subscribers.append(self._pulled)
+
+    def _pull(self) -> None:
+        """Pull mode: decode what Zenoh queued into the inboxes and the tap queue, in order."""
+        pulled, prefix = self._pulled, self._prefix
+        if pulled is None:
+            return
+        alive = prefix + ALIVE + "/"
+        tap_queue = [self._tap_queue] if self._tap_queue is not None else []
+        for _ in range(PULL_BATCH):
+            sample = pulled.try_recv()
+            if sample is None:
+                break
+            key = str(sample.key_expr)
+            if key.startswith(alive):
+                continue
+            inboxes = self._inboxes.get(key[len(prefix):], [])
+            if inboxes or tap_queue:       # decode only what someone reads
+                self._deliver(sample, [*inboxes, *tap_queue])
 
     def _count_full(self, outcome: str, topic: str) -> None:
         with self._lock:
@@ -337,8 +405,11 @@ class ZenohBus:
             inboxes = self._inboxes.get(topic)
             if inboxes is None:
                 inboxes = self._inboxes[topic] = []
-                self._subscribers.append(self.session.declare_subscriber(
-                    self._prefix + topic, self._callback(inboxes)))
+                if self.pull:
+                    self._pull_subscriber()
+                else:
+                    self._subscribers.append(self.session.declare_subscriber(
+                        self._prefix + topic, self._callback(inboxes)))
             inboxes.append(inbox)
         return inbox
 
@@ -349,7 +420,10 @@ class ZenohBus:
         channel faults); other processes' as received (after the publisher's faults and this
         bus's decode and policy checks).
         """
-        if self._tap_queue is None:
+        if self._tap_queue is None and self.pull:
+            self._tap_queue = SafeInbox(TAP_CAPACITY)
+            self._pull_subscriber()
+        elif self._tap_queue is None:
             self._tap_queue = SafeInbox(TAP_CAPACITY)
             queue = [self._tap_queue]
             callback = self._callback(queue)
@@ -367,6 +441,7 @@ class ZenohBus:
         if self.channel is not None:
             for topic, msg in self.channel.due():
                 self._send(topic, msg)
+        self._pull()
         while self._notices:
             self.publish(Topic.NOTICE, self._notices.popleft())
         if self._tap_queue is None:
@@ -412,14 +487,19 @@ class ZenohBus:
                     key, express=self.express, congestion_control=zenoh.CongestionControl.DROP,
                     reliability=zenoh.Reliability.BEST_EFFORT, priority=zenoh.Priority.DATA)
             self._publishers[topic] = publisher
+        sent_s = self.clock()
         try:
-            frame = self.registry.encode(msg, self.sender, self.clock())
+            frame = self.registry.encode(msg, self.sender, sent_s)
         except (TypeError, ValueError, OverflowError, msgspec.EncodeError):   # never crash the node
             name = type(msg).__name__
             self.stats.unencodable[name] = self.stats.unencodable.get(name, 0) + 1
             return
         publisher.put(frame)
         self.stats.published += 1
+        if self.pull and topic in self._inboxes and not self._refused(topic, self.sender, msg):
+            with self._lock:          # the pulled subscriber takes remote samples only
+                self.stats.received += 1
+            self._append(Stamped(topic, msg, sent_s), self._inboxes[topic])
 
     # ------------------------------------------------------------------ liveliness
 
@@ -445,6 +525,7 @@ class ZenohBus:
         for entity in (*self._tokens, *self._subscribers, *self._publishers.values()):
             with contextlib.suppress(Exception):   # the session may already be gone
                 entity.undeclare()
+        self._pulled = None
         if self._own_session:
             self.session.close()
 
@@ -459,12 +540,13 @@ def open_bus(*, sender: str, mode: str = "peer", listen: Iterable[str] = (),
              connect: Iterable[str] = (), vehicle: str = DEFAULT_VEHICLE,
              registry: Registry | None = None, base_file: str | Path | None = None,
              user: str | None = None, password: str | None = None, allow_remote: bool = False,
-             publishers: Mapping[str, frozenset[str]] | None = PUBLISHERS) -> ZenohBus:
+             publishers: Mapping[str, frozenset[str]] | None = PUBLISHERS,
+             pull: bool = False) -> ZenohBus:
     """Open a session with ``session_config`` and wrap it in a bus that owns it."""
     config = session_config(mode=mode, listen=listen, connect=connect, base_file=base_file,
                             user=user, password=password, allow_remote=allow_remote)
     return ZenohBus(zenoh.open(config), sender=sender, vehicle=vehicle, registry=registry,
-                    publishers=publishers, own_session=True)
+                    publishers=publishers, own_session=True, pull=pull)
 
 
 __all__ = [
@@ -472,6 +554,7 @@ __all__ = [
     "DEFAULT_ENDPOINT",
     "INBOX_CAPACITY",
     "PUBLISHERS",
+    "PULL_CAPACITY",
     "STATE",
     "STATE_TOPICS",
     "BusStats",
