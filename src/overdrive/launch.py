@@ -221,6 +221,8 @@ def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
     inbox = bus.subscribe([CLOCK_TOPIC])
     deadline = math.inf if timeout_s is None else time.monotonic() + timeout_s
     while time.monotonic() < deadline and not (stop and stop.is_set()):
+        if bus.pull:
+            bus.pump()
         for _topic, msg in inbox.drain():
             if isinstance(msg, LaunchClock):
                 return msg

@@ -22,7 +22,9 @@ Event-driven steps (issue 20): a node also steps as soon as one of its *triggers
 per hop. Its periodic schedule then re-anchors one period after that step, so a node fed at its
 own rate runs once per period, in phase with its input, and never more than a period goes by
 without a step. Only inboxes that can wake the runtime (``SafeInbox``) trigger; with
-``LocalBus`` (and in the lock-step runtime) nothing changes.
+``LocalBus`` (and in the lock-step runtime) nothing changes. On a pull-mode Zenoh bus (the
+launcher's) samples enter the inboxes only when the runtime pumps, so a trigger is seen at the
+next scheduled step, not at once.
 """
 
 from __future__ import annotations

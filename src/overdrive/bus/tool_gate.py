@@ -15,7 +15,9 @@ A tool can never hold the run back: the mesh-side relays queue samples in Zenoh 
 (``RELAY_CAPACITY``; no Python on Zenoh's threads) and the gate's loop forwards them. When a
 tool or the gate falls behind, the oldest samples for the tool are dropped; a Python callback
 there would make the mesh link wait for the gate's GIL, and every node's blocking command
-publisher with it (issue 20).
+publisher with it (issue 20). Each key has its own channel: a tool sees each key's samples in
+order, but samples of different keys published within one forwarding period (2 ms) may reach it
+in another order than they were sent.
 """
 
 from __future__ import annotations

@@ -29,11 +29,11 @@ that link is then not read, and since commands are published with blocking conge
 every node publishing to this process stalls on it, SPSS to the speed server included (issue 20).
 In pull mode one subscriber on ``**`` queues samples in Zenoh's own FIFO channel, with no Python
 on Zenoh's threads for data (liveliness changes, rare, still use a callback); ``pump()`` decodes
-them on the runtime's thread into the inboxes and taps (at most ``PULL_BATCH`` per pump). It is
+them on the runtime's thread into the inboxes and taps (``PULL_BATCH``). It is
 meant for a process that taps everything anyway: its links carry every topic. Pull mode has no
 wake-ups of its own: a trigger is seen when the runtime pumps (at its nodes' steps). This
-process's own publications reach its inboxes at once, policed like a received sample; a remote
-sample received earlier but not yet pumped then comes after them.
+process's own publications reach its inboxes at once, decoded and policed like a received
+sample; a remote sample received earlier but not yet pumped then comes after them.
 
 Publisher policy: ``PUBLISHERS[topic]`` is the set of node names allowed to publish on it.
 A frame whose envelope ``sender`` is not in the set is dropped and counted, never delivered; for
@@ -111,16 +111,18 @@ PUBLISHERS: dict[str, frozenset[str]] = {
 INBOX_CAPACITY = 1024
 """Envelopes a node's inbox holds: ~1 s of everything the busiest node (the recorder) receives
 (~900 messages/s in a whole-stack run), 100 periods of a 10 ms node; beyond it a node is stalled."""
-TAP_CAPACITY = 65_536
-"""Envelopes queued for taps (the recorder sees every message): ~60 s of a whole-stack run, so a
-launcher stalled for seconds on a loaded host loses nothing (~100 B each: ~7 MB at most)."""
 PULL_CAPACITY = 65_536
 """Samples Zenoh queues for a pull-mode bus between two pumps: ~60 s of a whole-stack run. A full
 FIFO channel blocks Zenoh's receiving thread: the publishers' links back up (commands wait, state
 samples are dropped) and a link blocked for ``BLOCK_CLOSE_US`` closes."""
-PULL_BATCH = 4096
-"""Samples one ``pump()`` takes from the channel: ~4 s of a whole-stack run, so a backlog after
-a stall is worked off over a few steps instead of holding the runtime's thread for seconds."""
+PULL_BATCH = INBOX_CAPACITY // 2
+"""Samples one ``pump()`` takes from the channel when the bus has inboxes: half an inbox, so a
+backlog is worked off over a few steps (each step drains its inbox) instead of overflowing an
+inbox in one pump. A bus with taps only (the launcher's) takes everything queued: its judge must
+see all evidence of a stall before it judges it (``launch.JUDGE_LAG_S``)."""
+TAP_CAPACITY = 65_536
+"""Envelopes queued for taps (the recorder sees every message): ~60 s of a whole-stack run, so a
+launcher stalled for seconds on a loaded host loses nothing (~100 B each: ~7 MB at most)."""
 BLOCK_CLOSE_US = 5_000_000
 """A command publisher blocked this long closes the link (Zenoh's default, stated explicitly):
 long enough for a loaded 2-core host, and the vehicle's 200 ms command timeout stops it first."""
@@ -375,7 +377,7 @@ class ZenohBus:
             return
         alive = prefix + ALIVE + "/"
         tap_queue = [self._tap_queue] if self._tap_queue is not None else []
-        for _ in range(PULL_BATCH):
+        for _ in range(PULL_BATCH if self._inboxes else PULL_CAPACITY):
             sample = pulled.try_recv()
             if sample is None:
                 break
@@ -496,10 +498,11 @@ class ZenohBus:
             return
         publisher.put(frame)
         self.stats.published += 1
-        if self.pull and topic in self._inboxes and not self._refused(topic, self.sender, msg):
-            with self._lock:          # the pulled subscriber takes remote samples only
-                self.stats.received += 1
-            self._append(Stamped(topic, msg, sent_s), self._inboxes[topic])
+        inboxes = self._inboxes.get(topic) if self.pull else None
+        if inboxes:                   # the pulled subscriber takes remote samples only
+            envelope = self._admit(self._prefix + topic, frame)   # checked as a receiver would
+            if envelope is not None:
+                self._append(envelope, inboxes)
 
     # ------------------------------------------------------------------ liveliness
 
