@@ -141,7 +141,7 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     started = time.monotonic()
     next_interest_s = started
     try:
-        while not stop.wait(RELAY_POLL_S):
+        while not stop.wait(RELAY_POLL_S if relays else INTEREST_POLL_S):   # idle: 5 wakes/s
             for key, relay in relays.items():
                 pub = outward[key]
                 while (sample := relay.try_recv()) is not None:
