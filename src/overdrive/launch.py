@@ -23,6 +23,7 @@ the same axis. Channel faults are applied by the process that publishes the faul
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import json
 import math
 import os
@@ -68,6 +69,8 @@ CLOCK_PERIOD_S = 0.1            # a (re)started node waits at most this long for
 START_LEAD_S = 0.3              # epoch this far ahead of the first clock message: all nodes start at t=0
 READY_TIMEOUT_S = 20.0          # nodes must be up (liveliness) within this
 STOP_GRACE_S = 10.0             # SIGTERM -> SIGKILL of the process group (a loaded host needs time)
+DUMP_SIGNAL = signal.SIGUSR1    # a node still up after the grace dumps every thread's stack first
+DUMP_WAIT_S = 0.5               # (faulthandler: needs no GIL, so it works in a wedged process)
 JUDGE_LAG_S = 1.0
 """The monitor judges a multi-process run by the frames' send stamps, this far behind the wall
 clock: evidence still in flight on a loaded host has arrived by then, so a late delivery to the
@@ -248,6 +251,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
+    faulthandler.register(DUMP_SIGNAL, all_threads=True)   # the launcher asks before it kills
     if user is not None:        # an authenticated run: log refused links (counted by the launcher)
         import zenoh
 
@@ -571,6 +575,9 @@ class Launch:
             popen.wait(STOP_GRACE_S)
         except subprocess.TimeoutExpired:
             proc.killed_at_stop = True
+            with contextlib.suppress(ProcessLookupError):   # where it hangs, on its stderr
+                os.kill(popen.pid, DUMP_SIGNAL)
+                time.sleep(DUMP_WAIT_S)
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(popen.pid, signal.SIGKILL)
             popen.wait(STOP_GRACE_S)

@@ -304,10 +304,9 @@ class _Sample:
 def test_inbox_overflow_is_counted_and_reported_as_a_fault() -> None:
     bus = ZenohBus(session=None, sender="speed", registry=stack_registry())  # type: ignore[arg-type]
     inbox = SafeInbox(capacity=2)
-    deliver = bus._callback([inbox])
     frame = stack_registry().encode(SPSS, "driving", 12.5)
     for _ in range(5):
-        deliver(_Sample("overdrive/ego/" + Topic.SET_SPEED, frame))
+        bus._deliver(_Sample("overdrive/ego/" + Topic.SET_SPEED, frame), [inbox])
     assert len(inbox) == 2 and bus.stats.overflow == {Topic.SET_SPEED: 3}
     assert [(n.kind, n.code) for n in bus._notices] == [("fault", "bus_overflow")], "reported once"
     assert [e.sent_s for e in inbox.drain()] == [12.5, 12.5], "the send time travels with it"

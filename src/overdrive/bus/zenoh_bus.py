@@ -15,12 +15,18 @@ bounded (``INBOX_CAPACITY``): when it is full a state sample makes room by dropp
 state sample (counted as ``stale_dropped``); a command that finds no room is an explicit fault:
 counted as ``overflow`` and reported once per topic as ``Notice(kind="fault", code="bus_overflow")``.
 
-Zenoh calls the subscriber callbacks on its own threads; each callback decodes the
-frame, checks the sender against the publisher policy and appends a ``Stamped`` ``(topic,
-msg)`` (with the frame's send time) to a ``SafeInbox`` under a lock. The runtime drains the inbox (one swap under the lock) before each
-step, so a node still sees the messages received since its last step, in arrival order. Taps
+Receiving: no Python runs on Zenoh's threads. Each subscription queues its samples in a Zenoh
+FIFO channel (``PULL_CAPACITY``) that a thread of the bus reads (waiting without the GIL); it
+decodes each frame, checks the sender against the publisher policy and appends a ``Stamped``
+``(topic, msg)`` (with the frame's send time) to a ``SafeInbox`` under a lock, waking the
+runtime for a trigger. The runtime drains the inbox (one swap under the lock) before each step,
+so a node sees the messages received since its last step, each topic in arrival order. Taps
 (recording, ``overdrive echo``) are queued the same way and delivered by ``pump()`` on the
-runtime's thread, never on a Zenoh thread.
+runtime's thread. Why not Python callbacks: Zenoh would run them on its receiving threads, which
+then wait for the GIL, and zenoh-python's ``put`` holds the GIL while blocking congestion control
+makes it wait (measured: no other thread of the process ran for the 5 s a put was blocked). A
+process blocked in a put, or busy, then stopped reading every link, and its peers' command puts
+could block on it in turn.
 
 Pull mode (``pull=True``, the launcher's bus): a Python callback needs the GIL. In a process
 whose own thread is busy (the launcher records and judges every message of the run), Zenoh's
@@ -305,6 +311,7 @@ class ZenohBus:
         self._stamped_taps: list[Callable[[str, Any, float], None]] = []
         self._tokens: list[Any] = []
         self._pulled: Any = None            # pull mode: the FIFO-channel subscriber on **
+        self._threads: list[threading.Thread] = []   # receivers: one per subscription
         self.closed = False
 
     # ------------------------------------------------------------------ receiving
@@ -358,10 +365,27 @@ class ZenohBus:
             if outcome:
                 self._count_full(outcome, envelope[0])
 
-    def _callback(self, inboxes: list[SafeInbox]) -> Callable[[zenoh.Sample], None]:
-        def deliver(sample: zenoh.Sample) -> None:
-            self._deliver(sample, inboxes)
-        return deliver
+    def _receiver(self, key: str, inboxes: list[SafeInbox], *,
+                  origin: zenoh.Locality = zenoh.Locality.ANY) -> None:
+        """Subscribe ``key`` into a Zenoh FIFO channel that a thread of ours drains into
+        ``inboxes`` (see the module doc: Zenoh's threads never wait for the GIL)."""
+        subscriber = self.session.declare_subscriber(
+            key, zenoh.handlers.FifoChannel(PULL_CAPACITY), allowed_origin=origin)
+        self._subscribers.append(subscriber)
+        alive = self._prefix + ALIVE + "/"
+
+        def receive() -> None:
+            while True:
+                try:
+                    sample = subscriber.recv()      # waits without the GIL
+                except Exception:                  # zenoh.ZError: the session closed
+                    return
+                if not str(sample.key_expr).startswith(alive):
+                    self._deliver(sample, inboxes)
+
+        thread = threading.Thread(target=receive, name=f"bus-rx {key}", daemon=True)
+        thread.start()
+        self._threads.append(thread)
 
     def _pull_subscriber(self) -> None:
         if self._pulled is None:
@@ -410,8 +434,7 @@ class ZenohBus:
                 if self.pull:
                     self._pull_subscriber()
                 else:
-                    self._subscribers.append(self.session.declare_subscriber(
-                        self._prefix + topic, self._callback(inboxes)))
+                    self._receiver(self._prefix + topic, inboxes)
             inboxes.append(inbox)
         return inbox
 
@@ -427,15 +450,7 @@ class ZenohBus:
             self._pull_subscriber()
         elif self._tap_queue is None:
             self._tap_queue = SafeInbox(TAP_CAPACITY)
-            queue = [self._tap_queue]
-            callback = self._callback(queue)
-            alive = self._prefix + ALIVE + "/"
-
-            def tap_sample(sample: zenoh.Sample) -> None:
-                if not str(sample.key_expr).startswith(alive):
-                    callback(sample)
-            self._subscribers.append(self.session.declare_subscriber(
-                self._prefix + "**", tap_sample, allowed_origin=zenoh.Locality.REMOTE))
+            self._receiver(self._prefix + "**", [self._tap_queue], origin=zenoh.Locality.REMOTE)
         self._taps.append(observer)
 
     def pump(self) -> int:
