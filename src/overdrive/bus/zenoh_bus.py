@@ -15,18 +15,12 @@ bounded (``INBOX_CAPACITY``): when it is full a state sample makes room by dropp
 state sample (counted as ``stale_dropped``); a command that finds no room is an explicit fault:
 counted as ``overflow`` and reported once per topic as ``Notice(kind="fault", code="bus_overflow")``.
 
-Receiving: no Python runs on Zenoh's threads. Each subscription queues its samples in a Zenoh
-FIFO channel (``PULL_CAPACITY``) that a thread of the bus reads (waiting without the GIL); it
-decodes each frame, checks the sender against the publisher policy and appends a ``Stamped``
-``(topic, msg)`` (with the frame's send time) to a ``SafeInbox`` under a lock, waking the
-runtime for a trigger. The runtime drains the inbox (one swap under the lock) before each step,
-so a node sees the messages received since its last step, each topic in arrival order. Taps
+Zenoh calls the subscriber callbacks on its own threads; each callback decodes the
+frame, checks the sender against the publisher policy and appends a ``Stamped`` ``(topic,
+msg)`` (with the frame's send time) to a ``SafeInbox`` under a lock. The runtime drains the inbox (one swap under the lock) before each
+step, so a node still sees the messages received since its last step, in arrival order. Taps
 (recording, ``overdrive echo``) are queued the same way and delivered by ``pump()`` on the
-runtime's thread. Why not Python callbacks: Zenoh would run them on its receiving threads, which
-then wait for the GIL, and zenoh-python's ``put`` holds the GIL while blocking congestion control
-makes it wait (measured: no other thread of the process ran for the 5 s a put was blocked). A
-process blocked in a put, or busy, then stopped reading every link, and its peers' command puts
-could block on it in turn.
+runtime's thread, never on a Zenoh thread.
 
 Pull mode (``pull=True``, the launcher's bus): a Python callback needs the GIL. In a process
 whose own thread is busy (the launcher records and judges every message of the run), Zenoh's
@@ -117,10 +111,11 @@ PUBLISHERS: dict[str, frozenset[str]] = {
 INBOX_CAPACITY = 1024
 """Envelopes a node's inbox holds: ~1 s of everything the busiest node (the recorder) receives
 (~900 messages/s in a whole-stack run), 100 periods of a 10 ms node; beyond it a node is stalled."""
-PULL_CAPACITY = 65_536
-"""Samples Zenoh queues for a pull-mode bus between two pumps: ~60 s of a whole-stack run. A full
+PULL_CAPACITY = 16_384
+"""Samples Zenoh queues for a pull-mode bus between two pumps: ~10 s of a whole-stack run. A full
 FIFO channel blocks Zenoh's receiving thread: the publishers' links back up (commands wait, state
-samples are dropped) and a link blocked for ``BLOCK_CLOSE_US`` closes."""
+samples are dropped) and a link blocked for ``BLOCK_CLOSE_US`` closes. Bounded for memory: a
+queued sample holds its receive buffer (measured ~9 kB resident per 100-byte sample)."""
 PULL_BATCH = INBOX_CAPACITY // 2
 """Samples one ``pump()`` takes from the channel when the bus has inboxes: half an inbox, so a
 backlog is worked off over a few steps (each step drains its inbox) instead of overflowing an
@@ -255,8 +250,8 @@ class SafeInbox:
 
 class BusStats:
     """Counters of one bus; updated under the bus lock (from Zenoh threads, or pulling, the
-    runtime's). ``received`` counts admitted samples: per subscription with callbacks, per
-    sample in pull mode."""
+    runtime's). ``received`` counts admitted samples: per subscription with callbacks (a sample
+    both tapped and subscribed counts twice), per sample in pull mode."""
 
     def __init__(self) -> None:
         self.published = 0
@@ -311,7 +306,6 @@ class ZenohBus:
         self._stamped_taps: list[Callable[[str, Any, float], None]] = []
         self._tokens: list[Any] = []
         self._pulled: Any = None            # pull mode: the FIFO-channel subscriber on **
-        self._threads: list[threading.Thread] = []   # receivers: one per subscription
         self.closed = False
 
     # ------------------------------------------------------------------ receiving
@@ -365,27 +359,10 @@ class ZenohBus:
             if outcome:
                 self._count_full(outcome, envelope[0])
 
-    def _receiver(self, key: str, inboxes: list[SafeInbox], *,
-                  origin: zenoh.Locality = zenoh.Locality.ANY) -> None:
-        """Subscribe ``key`` into a Zenoh FIFO channel that a thread of ours drains into
-        ``inboxes`` (see the module doc: Zenoh's threads never wait for the GIL)."""
-        subscriber = self.session.declare_subscriber(
-            key, zenoh.handlers.FifoChannel(PULL_CAPACITY), allowed_origin=origin)
-        self._subscribers.append(subscriber)
-        alive = self._prefix + ALIVE + "/"
-
-        def receive() -> None:
-            while True:
-                try:
-                    sample = subscriber.recv()      # waits without the GIL
-                except Exception:                  # zenoh.ZError: the session closed
-                    return
-                if not str(sample.key_expr).startswith(alive):
-                    self._deliver(sample, inboxes)
-
-        thread = threading.Thread(target=receive, name=f"bus-rx {key}", daemon=True)
-        thread.start()
-        self._threads.append(thread)
+    def _callback(self, inboxes: list[SafeInbox]) -> Callable[[zenoh.Sample], None]:
+        def deliver(sample: zenoh.Sample) -> None:
+            self._deliver(sample, inboxes)
+        return deliver
 
     def _pull_subscriber(self) -> None:
         if self._pulled is None:
@@ -434,7 +411,8 @@ class ZenohBus:
                 if self.pull:
                     self._pull_subscriber()
                 else:
-                    self._receiver(self._prefix + topic, inboxes)
+                    self._subscribers.append(self.session.declare_subscriber(
+                        self._prefix + topic, self._callback(inboxes)))
             inboxes.append(inbox)
         return inbox
 
@@ -450,7 +428,15 @@ class ZenohBus:
             self._pull_subscriber()
         elif self._tap_queue is None:
             self._tap_queue = SafeInbox(TAP_CAPACITY)
-            self._receiver(self._prefix + "**", [self._tap_queue], origin=zenoh.Locality.REMOTE)
+            queue = [self._tap_queue]
+            callback = self._callback(queue)
+            alive = self._prefix + ALIVE + "/"
+
+            def tap_sample(sample: zenoh.Sample) -> None:
+                if not str(sample.key_expr).startswith(alive):
+                    callback(sample)
+            self._subscribers.append(self.session.declare_subscriber(
+                self._prefix + "**", tap_sample, allowed_origin=zenoh.Locality.REMOTE))
         self._taps.append(observer)
 
     def pump(self) -> int:
