@@ -423,20 +423,19 @@ class ZenohBus:
         channel faults); other processes' as received (after the publisher's faults and this
         bus's decode and policy checks).
         """
-        if self._tap_queue is None and self.pull:
+        if self._tap_queue is None:
             self._tap_queue = SafeInbox(TAP_CAPACITY)
-            self._pull_subscriber()
-        elif self._tap_queue is None:
-            self._tap_queue = SafeInbox(TAP_CAPACITY)
-            queue = [self._tap_queue]
-            callback = self._callback(queue)
-            alive = self._prefix + ALIVE + "/"
+            if self.pull:
+                self._pull_subscriber()
+            else:
+                callback = self._callback([self._tap_queue])
+                alive = self._prefix + ALIVE + "/"
 
-            def tap_sample(sample: zenoh.Sample) -> None:
-                if not str(sample.key_expr).startswith(alive):
-                    callback(sample)
-            self._subscribers.append(self.session.declare_subscriber(
-                self._prefix + "**", tap_sample, allowed_origin=zenoh.Locality.REMOTE))
+                def tap_sample(sample: zenoh.Sample) -> None:
+                    if not str(sample.key_expr).startswith(alive):
+                        callback(sample)
+                self._subscribers.append(self.session.declare_subscriber(
+                    self._prefix + "**", tap_sample, allowed_origin=zenoh.Locality.REMOTE))
         self._taps.append(observer)
 
     def pump(self) -> int:
@@ -490,9 +489,8 @@ class ZenohBus:
                     key, express=self.express, congestion_control=zenoh.CongestionControl.DROP,
                     reliability=zenoh.Reliability.BEST_EFFORT, priority=zenoh.Priority.DATA)
             self._publishers[topic] = publisher
-        sent_s = self.clock()
         try:
-            frame = self.registry.encode(msg, self.sender, sent_s)
+            frame = self.registry.encode(msg, self.sender, self.clock())
         except (TypeError, ValueError, OverflowError, msgspec.EncodeError):   # never crash the node
             name = type(msg).__name__
             self.stats.unencodable[name] = self.stats.unencodable.get(name, 0) + 1
