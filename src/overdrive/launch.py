@@ -219,7 +219,7 @@ def _channel_faults(scenario: Scenario) -> Any:
 
 
 def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
-                   stop: threading.Event | None = None) -> LaunchClock | None:
+                   stop: threading.Event | StopFlag | None = None) -> LaunchClock | None:
     """Block until a ``LaunchClock`` arrives (None on timeout or ``stop``)."""
     inbox = bus.subscribe([CLOCK_TOPIC])
     deadline = math.inf if timeout_s is None else time.monotonic() + timeout_s
@@ -233,6 +233,21 @@ def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
     return None
 
 
+class StopFlag:
+    """Set by a signal handler: a plain attribute, no lock. A ``threading.Event`` deadlocked a
+    node at stop: the launcher's second SIGTERM arrived while the first handler held the Event's
+    lock in ``set()``, and the second handler waited on it forever (faulthandler dump)."""
+
+    def __init__(self) -> None:
+        self.flag = False
+
+    def set(self) -> None:
+        self.flag = True
+
+    def is_set(self) -> bool:
+        return self.flag
+
+
 def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
              connect: Sequence[str] = (), mode: str = "peer", vehicle: str = DEFAULT_VEHICLE,
              wait_clock: bool = False, report_path: Path | None = None,
@@ -241,7 +256,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
              duration_s: float | None = None) -> int:
     """Run one node until SIGTERM/SIGINT (or ``duration_s``); write a JSON report. Returns 0."""
     node = build_node(cli_name, scenario)
-    stop = threading.Event()
+    stop = StopFlag()
     runtime_box: list[WallRuntime] = []
 
     def on_signal(_signum: int, _frame: Any) -> None:
