@@ -71,6 +71,10 @@ def one(scenario: str, load: int, out: Path) -> dict:
         result["violations"] = launched["violations"]
         result["late_p99_ms"] = {name: report.get("runtime", {}).get("lateness_p99_ms")
                                  for name, report in launched["launch"]["nodes"].items()}
+        result["late_max_ms"] = {name: report.get("runtime", {}).get("lateness_max_ms")
+                                 for name, report in launched["launch"]["nodes"].items()}
+        result["scheduling"] = sorted({report.get("scheduling", "?")
+                                       for report in launched["launch"]["nodes"].values()})
     return result
 
 

@@ -73,10 +73,12 @@ def _zenoh_options(fn: Any) -> Any:
               help="Write timing and bus statistics here (JSON) on exit.")
 @click.option("--duration-s", type=click.FloatRange(min=0.0, min_open=True),
               help="Stop after this long (default: until SIGINT/SIGTERM).")
+@click.option("--realtime/--no-realtime", default=True, show_default=True,
+              help="Run SCHED_FIFO (priority 10) where the OS permits it, else at niceness -10.")
 @_zenoh_options
 def node(name: str, scenario_path: Path | None, preset: str, start: str, listen: tuple[str, ...],
          connect: tuple[str, ...], mode: str, wait_clock: bool, report: Path | None,
-         duration_s: float | None, zenoh_config: str | None, user: str | None,
+         duration_s: float | None, realtime: bool, zenoh_config: str | None, user: str | None,
          allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
     from overdrive.launch import UNAVAILABLE, preset_scenario, run_node
@@ -94,7 +96,7 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
         code = run_node(name, scenario, listen=listen, connect=connect, mode=mode, vehicle=vehicle,
                         wait_clock=wait_clock, report_path=report, base_file=zenoh_config,
                         user=user, password=os.environ.get(PASSWORD_ENV),
-                        allow_remote=allow_remote, duration_s=duration_s)
+                        allow_remote=allow_remote, duration_s=duration_s, realtime=realtime)
     except (ScenarioError, OutDirError) as exc:
         _usage(str(exc))
         return

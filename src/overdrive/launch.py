@@ -79,6 +79,19 @@ RUN_NICE = -10
 """Niceness of a run's processes where the OS permits raising it (root or CAP_SYS_NICE): on a
 busy host the CFS scheduler then gives a 10 ms control loop ~10x the share of a default-priority
 busy loop, so nodes are not starved into watchdog stops; without the permission, unchanged."""
+NODE_RT_PRIORITY = 10
+"""``SCHED_FIFO`` priority of a node's process (every thread) where the OS permits it (root,
+``CAP_SYS_NICE``, or ``RLIMIT_RTPRIO`` >= 10), as openpilot runs its control processes: a node that
+wakes for its step or a command runs at once instead of waiting for the CFS to pick it among busy
+processes (at nice -10, launches under two busy loops still saw nodes stalled 65-87 ms and watchdog
+stops). Low among real-time priorities, below the kernel's threaded interrupts (50). Set after the
+imports (start-up is a CPU burst that must not hold running nodes back: FIFO has no time slice)."""
+NODE_RT_CPU_LIMIT_S = (0.5, 1.0)
+"""``RLIMIT_RTTIME`` (soft, hard) of a real-time node: a thread that runs this long without
+blocking gets SIGXCPU, which ends the process (then SIGKILL at the hard limit); a node steps every
+10 ms for well under a millisecond and sleeps between steps, so only a runaway hits it. The
+kernel's real-time throttling alone would leave the rest of the host 5 % of a CPU meanwhile, and a
+dead node is what the watchdogs are for."""
 NODE_SPIN_S = 0.0                # no busy-wait in node processes: on a loaded host the CPU is
                                  # better left to the others (sleep overshoot ~0.1 ms << 10 ms)
 VEHICLE_COMMAND_TIMEOUT_S = COMMAND_TIMEOUT_S  # the vehicle brakes on pedal-command silence (VehicleSim)
@@ -253,8 +266,9 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
              wait_clock: bool = False, report_path: Path | None = None,
              base_file: str | Path | None = None, user: str | None = None,
              password: str | None = None, allow_remote: bool = False,
-             duration_s: float | None = None) -> int:
-    """Run one node until SIGTERM/SIGINT (or ``duration_s``); write a JSON report. Returns 0."""
+             duration_s: float | None = None, realtime: bool = True) -> int:
+    """Run one node until SIGTERM/SIGINT (or ``duration_s``); write a JSON report. Returns 0.
+    ``realtime``: ``SCHED_FIFO`` (``NODE_RT_PRIORITY``) where permitted, else ``RUN_NICE``."""
     node = build_node(cli_name, scenario)
     stop = StopFlag()
     runtime_box: list[WallRuntime] = []
@@ -271,6 +285,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
         import zenoh
 
         zenoh.init_log_from_env_or(LOG_FILTER)
+    node_priority(realtime)                      # before the session: its threads inherit it
     bus = open_bus(sender=node.name, mode=mode, listen=listen, connect=connect, vehicle=vehicle,
                    registry=stack_registry(), base_file=base_file, user=user, password=password,
                    allow_remote=allow_remote)
@@ -295,6 +310,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
         report = {
             "node": cli_name, "name": node.name, "pid": os.getpid(),
             "uptime_s": round(time.monotonic() - started, 3),
+            "scheduling": scheduling(),
             "epoch_monotonic_s": clock.epoch_monotonic_s if clock else None,
             "runtime": runtime.stats().get(node.name, {}),
             "bus": bus.stats.as_dict(),
@@ -325,8 +341,53 @@ def raise_priority() -> int | None:
         return None
 
 
+def realtime_priority(priority: int = NODE_RT_PRIORITY) -> bool:
+    """Run this thread (and the threads it starts later: call it before any) ``SCHED_FIFO`` at
+    ``priority``, with ``NODE_RT_CPU_LIMIT_S``, where the OS permits it; True if it does."""
+    try:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_RTTIME,
+                           tuple(round(s * 1e6) for s in NODE_RT_CPU_LIMIT_S))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, ValueError, AttributeError, ImportError):  # not permitted, or not Linux: as is
+        return False
+    return True
+
+
+def node_priority(realtime: bool = True) -> None:
+    """A node's priority: ``SCHED_FIFO`` if ``realtime`` and permitted, else ``RUN_NICE`` if
+    permitted, else as started."""
+    if not (realtime and realtime_priority()):
+        raise_priority()
+
+
+def scheduling() -> str:
+    """How the OS schedules this process's threads, for reports: ``fifo:10``,
+    ``other:nice=-10``, or several joined by ``,`` when the threads differ."""
+    try:
+        tids = [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        tids = [0]
+    seen = set()
+    for tid in tids:
+        try:
+            policy = os.sched_getscheduler(tid)
+            if policy in (os.SCHED_FIFO, os.SCHED_RR):
+                name = "fifo" if policy == os.SCHED_FIFO else "rr"
+                seen.add(f"{name}:{os.sched_getparam(tid).sched_priority}")
+            else:
+                seen.add(f"other:nice={os.getpriority(os.PRIO_PROCESS, tid)}")
+        except ProcessLookupError:    # a thread that ended meanwhile
+            continue
+        except (OSError, AttributeError):
+            seen.add("unknown")
+    return ",".join(sorted(seen))
+
+
 def _node_child() -> None:
-    """In a node's child process: run at ``RUN_NICE`` where permitted, die with the launcher."""
+    """In a node's child process: ``RUN_NICE`` where permitted (the node goes real-time itself,
+    after its imports), die with the launcher."""
     raise_priority()
     _die_with_parent()
 
@@ -425,6 +486,7 @@ class Launch:
         self.access: RunAccess | None = None
         self.gate_listen = f"tcp/127.0.0.1:{ports[-1]}" if self.secure and self.listen else ""
         self.gate: subprocess.Popen | None = None
+        self._niceness: int | None = None    # the launcher's own before start(), to restore
         if self.secure:
             import secrets
 
@@ -602,7 +664,12 @@ class Launch:
     # ------------------------------------------------------------------ lifecycle
 
     def start(self, ready_timeout_s: float = READY_TIMEOUT_S) -> None:
-        """Write the scenario for the nodes, spawn them, open the launcher's session, wait ready."""
+        """Write the scenario for the nodes, spawn them, open the launcher's session, wait ready.
+        The launcher runs at ``RUN_NICE`` where permitted until ``close()``: raised before its
+        session opens, since a thread's niceness is its own (Linux) and Zenoh's receiving threads
+        inherit it; a starved launcher that stops reading its links holds back blocking puts."""
+        if self._niceness is None:
+            self._niceness = raise_priority()
         (self.work_dir / "nodes").mkdir(parents=True, exist_ok=True)
         self._scenario_path = self.work_dir / "nodes" / "scenario.json"
         self._scenario_path.write_bytes(msgspec.json.encode(msgspec.to_builtins(self.scenario.spec)))
@@ -712,13 +779,7 @@ class Launch:
                     monitor.tick(now_s - JUDGE_LAG_S)
 
             wall_start = time.monotonic()
-            niceness = raise_priority()       # the player and recorder keep time too
-            try:
-                runtime.run(spec.duration_s, on_tick=before, after_step=after)
-            finally:
-                if niceness is not None and niceness != RUN_NICE:
-                    with contextlib.suppress(OSError):
-                        os.setpriority(os.PRIO_PROCESS, 0, niceness)
+            runtime.run(spec.duration_s, on_tick=before, after_step=after)
             wall_time_s = max(time.monotonic() - wall_start, 1e-9)
             self._supervise(runtime.now_s)
             reports = self.stop()
@@ -806,6 +867,10 @@ class Launch:
         if self._tmp is not None:
             self._tmp.cleanup()
             self._tmp = None
+        if self._niceness is not None and self._niceness != RUN_NICE:
+            with contextlib.suppress(OSError):
+                os.setpriority(os.PRIO_PROCESS, 0, self._niceness)
+        self._niceness = None
 
     def __enter__(self) -> Launch:
         return self

@@ -21,6 +21,7 @@ from overdrive.messages import Topic
 from overdrive.scenario import Scenario, load_scenario, parse_scenario
 from overdrive.sim import run_scenario
 from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
+from tests.bus.priority_probe import EXPECTED as EXPECTED_SCHEDULING
 
 pytestmark = pytest.mark.wallclock   # real time: run on an idle machine (Makefile)
 
@@ -89,6 +90,7 @@ def test_demo_over_processes_matches_embedded_run_and_pub_echo_work(run_dir: Pat
         runtime = report["runtime"]
         assert runtime["triggered"] <= 4 * scenario.spec.duration_s / 0.01, (name, runtime)
         assert report["bus"]["overflow"] == {}, (name, report["bus"])
+        assert report["scheduling"] == EXPECTED_SCHEDULING, (name, report["scheduling"])
     assert not (out / "nodes" / "access").exists(), "the run's credentials die with it"
 
 

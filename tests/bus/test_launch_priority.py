@@ -1,0 +1,97 @@
+"""Node processes run real-time (``SCHED_FIFO``) where the OS permits it, else at ``RUN_NICE``.
+
+Judged from the OS (the policy of every thread of the child, Zenoh's included), not from what the
+launcher meant to set; the demo launch test checks the same in each node's report.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from overdrive.launch import NODE_RT_PRIORITY, RUN_NICE
+from tests.bus.priority_probe import EXPECTED, NICE_PERMITTED, RT_PERMITTED, STARTED_NICE
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling")
+
+
+REFUSE = """
+    import os
+    def refuse(*_args):
+        raise PermissionError(1, "Operation not permitted")
+"""
+SESSION = """
+    import zenoh
+    config = zenoh.Config()
+    config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("listen/endpoints", "[]")
+    session = zenoh.open(config)
+"""
+
+
+def _child(body: str, timeout_s: float = 60) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(body)], capture_output=True,
+                          text=True, timeout=timeout_s, start_new_session=True)
+
+
+def _priority_of_a_node(prelude: str = "", realtime: bool = True) -> str:
+    """What a node process reports about all its threads once its session is open."""
+    out = _child(prelude + f"""
+    from overdrive.launch import _node_child, node_priority, scheduling
+    _node_child()                       # as the launcher's preexec_fn
+    node_priority({realtime})           # as run_node, before its session
+    """ + SESSION + """
+    print(scheduling())
+    session.close()
+    """)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
+def test_every_thread_of_a_node_runs_at_its_priority_zenoh_included() -> None:
+    assert _priority_of_a_node() == EXPECTED
+
+
+def test_without_real_time_permission_a_node_falls_back_to_run_nice() -> None:
+    expected = f"other:nice={RUN_NICE if NICE_PERMITTED else STARTED_NICE}"
+    assert _priority_of_a_node(REFUSE + "    os.sched_setscheduler = refuse\n") == expected
+
+
+def test_without_any_permission_a_node_runs_as_it_was_started() -> None:
+    prelude = REFUSE + "    os.sched_setscheduler = os.setpriority = refuse\n"
+    assert _priority_of_a_node(prelude) == f"other:nice={STARTED_NICE}"
+
+
+def test_no_realtime_asks_for_run_nice_only() -> None:
+    assert _priority_of_a_node(realtime=False) == f"other:nice={RUN_NICE if NICE_PERMITTED else STARTED_NICE}"
+
+
+@pytest.mark.skipif(not RT_PERMITTED, reason="this host does not permit SCHED_FIFO")
+def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not() -> None:
+    """RLIMIT_RTTIME: a thread spinning at FIFO priority would hold a CPU; the kernel ends it."""
+    spinning = _child("""
+        import time
+        from overdrive.launch import node_priority
+        node_priority()
+        end = time.monotonic() + 20
+        while time.monotonic() < end:
+            pass
+        print("survived")
+    """)
+    assert spinning.returncode in (-signal.SIGXCPU, -signal.SIGKILL), (spinning.returncode, spinning.stdout)
+    stepping = _child("""
+        import time
+        from overdrive.launch import node_priority, scheduling
+        node_priority()
+        for _ in range(300):            # 3 s of 10 ms steps, each 2 ms of work, then a sleep
+            end = time.monotonic() + 0.002
+            while time.monotonic() < end:
+                pass
+            time.sleep(0.008)
+        print(scheduling())
+    """)
+    assert stepping.returncode == 0 and stepping.stdout.strip() == f"fifo:{NODE_RT_PRIORITY}", stepping
