@@ -127,13 +127,15 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
 @click.option("--credentials", type=click.Path(dir_okay=False, exists=True),
               help="user:password lines; each process authenticates as its node name.")
 @click.option("--no-plot", is_flag=True, help="Skip plot.png.")
+@click.option("--realtime/--no-realtime", default=True, show_default=True,
+              help="Nodes run SCHED_FIFO (priority 10) where the OS permits it, else niceness -10.")
 @click.option("--quiet", is_flag=True, help="Print only the run folder.")
 @click.option("--open-bus", is_flag=True,
               help="No authentication or access rules (any local process can join and command "
                    "the run). Default: per-run credentials and rules, locked down.")
 @_zenoh_options
 def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kills: tuple[str, ...],
-           credentials: str | None, no_plot: bool, quiet: bool, open_bus: bool,
+           credentials: str | None, no_plot: bool, realtime: bool, quiet: bool, open_bus: bool,
            zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
     from overdrive.launch import Launch, check_launchable
@@ -150,7 +152,7 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
         make_out_dir(out)
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
-                     plot=not no_plot, node_log=True, secure=not open_bus)
+                     plot=not no_plot, node_log=True, secure=not open_bus, realtime=realtime)
     except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return

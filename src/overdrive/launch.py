@@ -451,8 +451,10 @@ class Launch:
                  restart_delay_s: float = 0.5, actions: Sequence[Action] = (),
                  base_file: str | Path | None = None, credentials: str | Path | None = None,
                  allow_remote: bool = False, plot: bool = True,
-                 node_log: bool = False, secure: bool = True) -> None:
+                 node_log: bool = False, secure: bool = True, realtime: bool = True) -> None:
         self.scenario = scenario
+        self.realtime = realtime
+        """Nodes run ``SCHED_FIFO`` where permitted (``node_priority``); False: niceness only."""
         self.out_dir = Path(out_dir) if out_dir is not None else None
         self.listen, self.vehicle, self.python = listen, vehicle, python
         self.restart, self.restart_delay_s = restart, restart_delay_s
@@ -487,6 +489,7 @@ class Launch:
         self.gate_listen = f"tcp/127.0.0.1:{ports[-1]}" if self.secure and self.listen else ""
         self.gate: subprocess.Popen | None = None
         self._niceness: int | None = None    # the launcher's own before start(), to restore
+        self._nice_tid = 0                   # ... on the thread that called start()
         if self.secure:
             import secrets
 
@@ -533,6 +536,8 @@ class Launch:
             cmd += ["--zenoh-config", str(base_file)]
         if self.allow_remote:
             cmd.append("--allow-remote")
+        if not self.realtime:
+            cmd.append("--no-realtime")
         env = dict(os.environ)
         node_name = NODE_CLASSES[proc.cli_name]
         password = self._credentials_for(node_name)
@@ -669,7 +674,7 @@ class Launch:
         session opens, since a thread's niceness is its own (Linux) and Zenoh's receiving threads
         inherit it; a starved launcher that stops reading its links holds back blocking puts."""
         if self._niceness is None:
-            self._niceness = raise_priority()
+            self._niceness, self._nice_tid = raise_priority(), threading.get_native_id()
         (self.work_dir / "nodes").mkdir(parents=True, exist_ok=True)
         self._scenario_path = self.work_dir / "nodes" / "scenario.json"
         self._scenario_path.write_bytes(msgspec.json.encode(msgspec.to_builtins(self.scenario.spec)))
@@ -868,8 +873,8 @@ class Launch:
             self._tmp.cleanup()
             self._tmp = None
         if self._niceness is not None and self._niceness != RUN_NICE:
-            with contextlib.suppress(OSError):
-                os.setpriority(os.PRIO_PROCESS, 0, self._niceness)
+            with contextlib.suppress(OSError):    # niceness is per thread: start()'s, wherever we are
+                os.setpriority(os.PRIO_PROCESS, self._nice_tid, self._niceness)
         self._niceness = None
 
     def __enter__(self) -> Launch:

@@ -6,14 +6,18 @@ launcher meant to set; the demo launch test checks the same in each node's repor
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
-from overdrive.launch import NODE_RT_PRIORITY, RUN_NICE
+from overdrive import launch as launch_mod
+from overdrive.launch import NODE_RT_PRIORITY, RUN_NICE, Launch, free_port
+from overdrive.scenario import load_scenario
 from tests.bus.priority_probe import EXPECTED, NICE_PERMITTED, RT_PERMITTED, STARTED_NICE
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling")
@@ -95,3 +99,36 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
         print(scheduling())
     """)
     assert stepping.returncode == 0 and stepping.stdout.strip() == f"fifo:{NODE_RT_PRIORITY}", stepping
+
+
+@pytest.mark.parametrize("flag", [None, "--no-realtime"])
+def test_overdrive_node_reports_the_scheduling_it_ran_at(tmp_path, flag: str | None) -> None:
+    """The CLI path end to end: ``overdrive node`` as a user starts it, judged by its report."""
+    report = tmp_path / "move.json"
+    cmd = [sys.executable, "-m", "overdrive.bus_cli", "node", "move", "--duration-s", "1",
+           "--report", str(report), "--listen", f"tcp/127.0.0.1:{free_port()}"]
+    out = subprocess.run(cmd + ([flag] if flag else []), capture_output=True, text=True,
+                         timeout=120, start_new_session=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    nice_only = f"other:nice={RUN_NICE if NICE_PERMITTED else STARTED_NICE}"
+    assert json.loads(report.read_text())["scheduling"] == (nice_only if flag else EXPECTED)
+
+
+@pytest.mark.parametrize("realtime", [True, False])
+def test_a_launch_without_realtime_asks_its_nodes_for_niceness_only(tmp_path, monkeypatch,
+                                                                     realtime: bool) -> None:
+    commands: list[list[str]] = []
+
+    class Recorded:
+        def __init__(self, cmd: list[str], **_kwargs: object) -> None:
+            commands.append(cmd)
+
+    monkeypatch.setattr(launch_mod.subprocess, "Popen", Recorded)
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / "move-straight.yaml")
+    run = Launch(scenario, tmp_path / "run", realtime=realtime)
+    run._scenario_path = tmp_path / "scenario.json"
+    (run.work_dir / "nodes").mkdir(parents=True, exist_ok=True)   # as start() makes it
+    for proc in run.procs.values():
+        run._spawn(proc)
+    assert len(commands) == len(run.procs) >= 3
+    assert all(("--no-realtime" in cmd) is (not realtime) for cmd in commands)
