@@ -73,12 +73,12 @@ def _zenoh_options(fn: Any) -> Any:
               help="Write timing and bus statistics here (JSON) on exit.")
 @click.option("--duration-s", type=click.FloatRange(min=0.0, min_open=True),
               help="Stop after this long (default: until SIGINT/SIGTERM).")
-@click.option("--realtime/--no-realtime", default=True, show_default=True,
+@click.option("--rt-priority/--no-rt-priority", default=True, show_default=True,
               help="Run SCHED_FIFO (priority 10) where the OS permits it, else at niceness -10.")
 @_zenoh_options
 def node(name: str, scenario_path: Path | None, preset: str, start: str, listen: tuple[str, ...],
          connect: tuple[str, ...], mode: str, wait_clock: bool, report: Path | None,
-         duration_s: float | None, realtime: bool, zenoh_config: str | None, user: str | None,
+         duration_s: float | None, rt_priority: bool, zenoh_config: str | None, user: str | None,
          allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
     from overdrive.launch import UNAVAILABLE, preset_scenario, run_node
@@ -96,7 +96,7 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
         code = run_node(name, scenario, listen=listen, connect=connect, mode=mode, vehicle=vehicle,
                         wait_clock=wait_clock, report_path=report, base_file=zenoh_config,
                         user=user, password=os.environ.get(PASSWORD_ENV),
-                        allow_remote=allow_remote, duration_s=duration_s, realtime=realtime)
+                        allow_remote=allow_remote, duration_s=duration_s, rt_priority=rt_priority)
     except (ScenarioError, OutDirError) as exc:
         _usage(str(exc))
         return
@@ -127,7 +127,7 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
 @click.option("--credentials", type=click.Path(dir_okay=False, exists=True),
               help="user:password lines; each process authenticates as its node name.")
 @click.option("--no-plot", is_flag=True, help="Skip plot.png.")
-@click.option("--realtime/--no-realtime", default=True, show_default=True,
+@click.option("--rt-priority/--no-rt-priority", default=True, show_default=True,
               help="Nodes run SCHED_FIFO (priority 10) where the OS permits it, else niceness -10.")
 @click.option("--quiet", is_flag=True, help="Print only the run folder.")
 @click.option("--open-bus", is_flag=True,
@@ -135,7 +135,7 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
                    "the run). Default: per-run credentials and rules, locked down.")
 @_zenoh_options
 def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kills: tuple[str, ...],
-           credentials: str | None, no_plot: bool, realtime: bool, quiet: bool, open_bus: bool,
+           credentials: str | None, no_plot: bool, rt_priority: bool, quiet: bool, open_bus: bool,
            zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
     from overdrive.launch import Launch, check_launchable
@@ -152,7 +152,7 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
         make_out_dir(out)
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
-                     plot=not no_plot, node_log=True, secure=not open_bus, realtime=realtime)
+                     plot=not no_plot, node_log=True, secure=not open_bus, rt_priority=rt_priority)
     except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return

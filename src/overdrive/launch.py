@@ -266,9 +266,9 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
              wait_clock: bool = False, report_path: Path | None = None,
              base_file: str | Path | None = None, user: str | None = None,
              password: str | None = None, allow_remote: bool = False,
-             duration_s: float | None = None, realtime: bool = True) -> int:
+             duration_s: float | None = None, rt_priority: bool = True) -> int:
     """Run one node until SIGTERM/SIGINT (or ``duration_s``); write a JSON report. Returns 0.
-    ``realtime``: ``SCHED_FIFO`` (``NODE_RT_PRIORITY``) where permitted, else ``RUN_NICE``."""
+    ``rt_priority``: ``SCHED_FIFO`` (``NODE_RT_PRIORITY``) where permitted, else ``RUN_NICE``."""
     node = build_node(cli_name, scenario)
     stop = StopFlag()
     runtime_box: list[WallRuntime] = []
@@ -285,7 +285,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
         import zenoh
 
         zenoh.init_log_from_env_or(LOG_FILTER)
-    node_priority(realtime)                      # before the session: its threads inherit it
+    node_priority(rt_priority)                   # before the session: its threads inherit it
     bus = open_bus(sender=node.name, mode=mode, listen=listen, connect=connect, vehicle=vehicle,
                    registry=stack_registry(), base_file=base_file, user=user, password=password,
                    allow_remote=allow_remote)
@@ -355,10 +355,10 @@ def realtime_priority(priority: int = NODE_RT_PRIORITY) -> bool:
     return True
 
 
-def node_priority(realtime: bool = True) -> None:
-    """A node's priority: ``SCHED_FIFO`` if ``realtime`` and permitted, else ``RUN_NICE`` if
+def node_priority(rt_priority: bool = True) -> None:
+    """A node's priority: ``SCHED_FIFO`` if ``rt_priority`` and permitted, else ``RUN_NICE`` if
     permitted, else as started."""
-    if not (realtime and realtime_priority()):
+    if not (rt_priority and realtime_priority()):
         raise_priority()
 
 
@@ -451,9 +451,9 @@ class Launch:
                  restart_delay_s: float = 0.5, actions: Sequence[Action] = (),
                  base_file: str | Path | None = None, credentials: str | Path | None = None,
                  allow_remote: bool = False, plot: bool = True,
-                 node_log: bool = False, secure: bool = True, realtime: bool = True) -> None:
+                 node_log: bool = False, secure: bool = True, rt_priority: bool = True) -> None:
         self.scenario = scenario
-        self.realtime = realtime
+        self.rt_priority = rt_priority
         """Nodes run ``SCHED_FIFO`` where permitted (``node_priority``); False: niceness only."""
         self.out_dir = Path(out_dir) if out_dir is not None else None
         self.listen, self.vehicle, self.python = listen, vehicle, python
@@ -536,8 +536,8 @@ class Launch:
             cmd += ["--zenoh-config", str(base_file)]
         if self.allow_remote:
             cmd.append("--allow-remote")
-        if not self.realtime:
-            cmd.append("--no-realtime")
+        if not self.rt_priority:
+            cmd.append("--no-rt-priority")
         env = dict(os.environ)
         node_name = NODE_CLASSES[proc.cli_name]
         password = self._credentials_for(node_name)

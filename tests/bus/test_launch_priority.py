@@ -42,12 +42,12 @@ def _child(body: str, timeout_s: float = 60) -> subprocess.CompletedProcess[str]
                           text=True, timeout=timeout_s, start_new_session=True)
 
 
-def _priority_of_a_node(prelude: str = "", realtime: bool = True) -> str:
+def _priority_of_a_node(prelude: str = "", rt_priority: bool = True) -> str:
     """What a node process reports about all its threads once its session is open."""
     out = _child(prelude + f"""
     from overdrive.launch import _node_child, node_priority, scheduling
     _node_child()                       # as the launcher's preexec_fn
-    node_priority({realtime})           # as run_node, before its session
+    node_priority({rt_priority})           # as run_node, before its session
     """ + SESSION + """
     print(scheduling())
     session.close()
@@ -70,8 +70,8 @@ def test_without_any_permission_a_node_runs_as_it_was_started() -> None:
     assert _priority_of_a_node(prelude) == f"other:nice={STARTED_NICE}"
 
 
-def test_no_realtime_asks_for_run_nice_only() -> None:
-    assert _priority_of_a_node(realtime=False) == f"other:nice={RUN_NICE if NICE_PERMITTED else STARTED_NICE}"
+def test_no_rt_priority_asks_for_run_nice_only() -> None:
+    assert _priority_of_a_node(rt_priority=False) == f"other:nice={RUN_NICE if NICE_PERMITTED else STARTED_NICE}"
 
 
 @pytest.mark.skipif(not RT_PERMITTED, reason="this host does not permit SCHED_FIFO")
@@ -101,7 +101,7 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
     assert stepping.returncode == 0 and stepping.stdout.strip() == f"fifo:{NODE_RT_PRIORITY}", stepping
 
 
-@pytest.mark.parametrize("flag", [None, "--no-realtime"])
+@pytest.mark.parametrize("flag", [None, "--no-rt-priority"])
 def test_overdrive_node_reports_the_scheduling_it_ran_at(tmp_path, flag: str | None) -> None:
     """The CLI path end to end: ``overdrive node`` as a user starts it, judged by its report."""
     report = tmp_path / "move.json"
@@ -114,9 +114,9 @@ def test_overdrive_node_reports_the_scheduling_it_ran_at(tmp_path, flag: str | N
     assert json.loads(report.read_text())["scheduling"] == (nice_only if flag else EXPECTED)
 
 
-@pytest.mark.parametrize("realtime", [True, False])
-def test_a_launch_without_realtime_asks_its_nodes_for_niceness_only(tmp_path, monkeypatch,
-                                                                     realtime: bool) -> None:
+@pytest.mark.parametrize("rt_priority", [True, False])
+def test_a_launch_without_rt_priority_asks_its_nodes_for_niceness_only(tmp_path, monkeypatch,
+                                                                     rt_priority: bool) -> None:
     commands: list[list[str]] = []
 
     class Recorded:
@@ -125,10 +125,10 @@ def test_a_launch_without_realtime_asks_its_nodes_for_niceness_only(tmp_path, mo
 
     monkeypatch.setattr(launch_mod.subprocess, "Popen", Recorded)
     scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / "move-straight.yaml")
-    run = Launch(scenario, tmp_path / "run", realtime=realtime)
+    run = Launch(scenario, tmp_path / "run", rt_priority=rt_priority)
     run._scenario_path = tmp_path / "scenario.json"
     (run.work_dir / "nodes").mkdir(parents=True, exist_ok=True)   # as start() makes it
     for proc in run.procs.values():
         run._spawn(proc)
     assert len(commands) == len(run.procs) >= 3
-    assert all(("--no-realtime" in cmd) is (not realtime) for cmd in commands)
+    assert all(("--no-rt-priority" in cmd) is (not rt_priority) for cmd in commands)
