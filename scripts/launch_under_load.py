@@ -69,12 +69,11 @@ def one(scenario: str, load: int, out: Path) -> dict:
         result["launched"] = [launched["final"]["x_m"], launched["final"]["y_m"]]
         result["offset_m"] = round(math.dist(result["embedded"], result["launched"]), 3)
         result["violations"] = launched["violations"]
-        result["late_p99_ms"] = {name: report.get("runtime", {}).get("lateness_p99_ms")
-                                 for name, report in launched["launch"]["nodes"].items()}
-        result["late_max_ms"] = {name: report.get("runtime", {}).get("lateness_max_ms")
-                                 for name, report in launched["launch"]["nodes"].items()}
-        result["scheduling"] = sorted({report.get("scheduling", "?")
-                                       for report in launched["launch"]["nodes"].values()})
+        nodes = launched["launch"]["nodes"]
+        for key in ("p99", "max"):
+            result[f"late_{key}_ms"] = {name: report.get("runtime", {}).get(f"lateness_{key}_ms")
+                                        for name, report in nodes.items()}
+        result["scheduling"] = sorted({report.get("scheduling", "?") for report in nodes.values()})
     return result
 
 

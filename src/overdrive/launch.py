@@ -331,7 +331,8 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
 # --------------------------------------------------------------------------- the launcher
 
 def raise_priority() -> int | None:
-    """Run this process at ``RUN_NICE`` when the OS allows it; the previous niceness, else None."""
+    """Run this thread (and the threads it starts later) at ``RUN_NICE`` when the OS allows it;
+    the previous niceness, else None. On Linux niceness is per thread."""
     try:
         before = os.getpriority(os.PRIO_PROCESS, 0)
         if before > RUN_NICE:
