@@ -1,23 +1,73 @@
 # The two set-up commands (../shared/contract.md): each creates .venv when missing and installs
 # what it needs. Nothing else is needed on a fresh machine with Python >= 3.11.
+#
+# Every install is the lock: requirements.lock pins every direct and transitive dependency (pip
+# and the build backend included) with its hashes, for every Python >= 3.11 (one universal lock,
+# environment markers where versions differ). The project itself goes in last without
+# dependencies, so nothing unpinned is ever resolved. `make lock` re-locks after pyproject.toml
+# changes keeping every pin it can; `make lock-upgrade` moves every pin on purpose and runs the
+# suite on the result. Both need the network; the rest works offline from `make wheels`.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
+LOCK := requirements.lock
+LOCK_TOOL := uv==0.13.9
+LOCK_VENV := .venv-lock
+WHEELS ?= wheels
+# `make wheels WHEELS_TARGET="--platform manylinux2014_aarch64 --python-version 3.12 --only-binary=:all:"`
+# fetches for another vehicle computer than this machine.
+WHEELS_TARGET ?=
 
-.PHONY: run test test-under-load launch-under-load lint bench clean coverage-gate interop test-variants
+.PHONY: run test test-under-load launch-under-load lint bench clean coverage-gate interop test-variants \
+        check-env lock lock-upgrade wheels install-offline
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	@touch $(STAMP)
 
-run: $(STAMP)
+# Stops `make test` and `make run` early, naming each package whose version is not the lock's.
+check-env: $(STAMP)
+	@$(PY) scripts/check_env.py $(LOCK)
+
+$(LOCK_VENV)/bin/uv:
+	$(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install --quiet '$(LOCK_TOOL)'
+
+LOCK_COMPILE = printf 'setuptools>=77\npip>=23.2\n' | $(LOCK_VENV)/bin/uv pip compile --quiet \
+	pyproject.toml - --extra test --universal --python-version 3.11 --generate-hashes \
+	--custom-compile-command "make lock" -o $(LOCK)
+
+lock: $(LOCK_VENV)/bin/uv
+	$(LOCK_COMPILE)
+
+lock-upgrade: $(LOCK_VENV)/bin/uv
+	$(LOCK_COMPILE) --upgrade
+	@git --no-pager diff --stat -- $(LOCK) || true
+	$(MAKE) test
+
+# Offline vehicle computers: `make wheels` on a connected machine (same platform and Python, or
+# WHEELS_TARGET) fills wheels/ with every file the lock pins, hash-checked; copy the checkout with
+# wheels/ to the vehicle and run `make install-offline` there: no package index is ever asked
+# (--no-index, --isolated: pip's own configuration and PIP_* variables are ignored).
+wheels:
+	$(PYTHON) -m pip download --quiet --require-hashes --no-deps -r $(LOCK) -d $(WHEELS) $(WHEELS_TARGET)
+
+install-offline:
+	@test -d $(WHEELS) || { echo "install-offline: no $(WHEELS)/ folder: run 'make wheels' on a connected machine and copy it here" >&2; exit 2; }
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip --isolated install --quiet --no-index --find-links $(WHEELS) --require-hashes -r $(LOCK)
+	$(PY) -m pip --isolated install --quiet --no-index --no-deps --no-build-isolation -e .
+	@touch $(STAMP)
+	@$(PY) scripts/check_env.py $(LOCK)
+
+run: check-env
 	$(VENV)/bin/overdrive sim scenarios/demo.yaml
 
-lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests bench fuzz
+lint: check-env
+	$(VENV)/bin/ruff check src tests bench fuzz scripts
 
 # Safety-critical modules (issue 9): 100 % line and branch coverage, enforced.
 SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.safety.watchdog \
@@ -28,7 +78,7 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
 # Wall-clock and OpenJAUS interop tests (real processes, sockets, fixed ports) run serially
 # after the parallel suite; the interop ones build OpenJAUS once into ~/.cache/overdrive
 # (tests/interop/conftest.py) and skip, saying why, without ../shared/interop/openjaus.
-test: lint
+test: check-env lint
 	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock and not interop"
 	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
 	@$(MAKE) --no-print-directory coverage-gate
@@ -58,4 +108,4 @@ bench: $(STAMP)
 	$(PY) bench/run.py
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) $(LOCK_VENV) runs .pytest_cache

@@ -26,7 +26,16 @@ import yaml
 from overdrive.messages import Topic, Truth
 from overdrive.recorder import Recorder
 from overdrive.run_files import OutDirError, finite_json, make_out_dir
-from overdrive.safe_yaml import MAX_DEPTH, MAX_FILE_BYTES, MAX_NODES
+from overdrive.safe_yaml import (
+    MAX_DEPTH,
+    MAX_FILE_BYTES,
+    MAX_NODES,
+    InputError,
+    _load_yaml,
+    _Loader,
+    _PyLoader,
+    load_yaml,
+)
 from overdrive.scenario import ScenarioError, load_scenario
 from overdrive.vehicle.presets import PLAUSIBLE_RANGES, PRESETS, vehicle_from_spec
 
@@ -395,3 +404,22 @@ def test_summary_json_of_a_run_carries_null_for_a_non_finite_figure(tmp_path: Pa
 
     summary = json.loads((tmp_path / "run" / "summary.json").read_text(), parse_constant=refuse)
     assert summary["peaks"]["max_speed_mps"] is None and summary["final"]["x_m"] is None
+
+
+@pytest.mark.parametrize("case", ["3,000 levels of lists", "5,000 levels of mappings"])
+def test_deep_nesting_names_the_field_whichever_parser_stops_first(case: str) -> None:
+    """libyaml (PyYAML 6.0.2+ wheels) stops at its own nesting limit before handing out one
+    event; the file is read again by the pure-Python parser, so the message is the one the
+    project's depth check gives, with the field, whichever parser the install has."""
+    text = HOSTILE[case][0].decode()
+    messages = {}
+    for name, loader in (("libyaml", _Loader), ("pure", _PyLoader), ("load_yaml", None)):
+        try:
+            _load_yaml(text, loader) if loader else load_yaml(text)
+        except InputError as exc:
+            messages[name] = str(exc)
+        except Exception as exc:    # libyaml's own limit: the fallback's trigger
+            messages[name] = type(exc).__name__
+    assert messages["load_yaml"] == messages["pure"]
+    assert f"nested deeper than {MAX_DEPTH} levels" in messages["load_yaml"]
+    assert messages["load_yaml"].startswith(HOSTILE[case][1][0])

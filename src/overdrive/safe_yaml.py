@@ -42,9 +42,21 @@ class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
     ``1.0e308`` as numbers as YAML 1.2 and JSON do (YAML 1.1 wants ``1.0e+3``: a string)."""
 
 
-_Loader.add_implicit_resolver(
-    _FLOAT_TAG, re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."))
+class _PyLoader(yaml.SafeLoader):
+    """The pure-Python safe loader with the same resolvers: the second reader of a file that
+    libyaml refused for its own nesting limit (below)."""
+
+
+_LIBYAML_NESTING = "exceeded maximum nesting depth"
+"""libyaml >= 0.2.5 (bundled in PyYAML 6.0.2+ wheels) scans a flow collection's tokens ahead
+of its events to resolve simple keys, so it stops at its own nesting limit (1,000 levels)
+before the loader sees one event; the pure-Python scanner stops looking ahead after 1,024
+characters and hands out the events, so the project's ``MAX_DEPTH`` names the field."""
+
+for _cls in {_Loader, _PyLoader}:
+    _cls.add_implicit_resolver(
+        _FLOAT_TAG, re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+        list("-+0123456789."))
 
 
 def one_line(text: str) -> str:
@@ -124,9 +136,23 @@ def load_yaml(text: str) -> Any:
     Rejected: explicit tags (``!!binary``, ``!!python/object``: a scenario needs none), merge
     keys (``<<``), duplicate keys, non-scalar keys, aliases to an unfinished (recursive)
     anchor, more than one document, nesting deeper than ``MAX_DEPTH`` and more than
-    ``MAX_NODES`` nodes after alias expansion.
+    ``MAX_NODES`` nodes after alias expansion. A file that libyaml refuses for its own
+    nesting limit is read again by the pure-Python parser, so the message is the same (the
+    field path and ``MAX_DEPTH``) whichever parser and version the install has.
     """
-    loader = _Loader(text)
+    try:
+        return _load_yaml(text, _Loader)
+    except _LibyamlNesting:
+        return _load_yaml(text, _PyLoader)
+
+
+class _LibyamlNesting(Exception):
+    """libyaml stopped at its own nesting limit before handing out the events."""
+
+
+def _load_yaml(text: str, loader_class: type) -> Any:
+    """``load_yaml`` with one parser: ``_LibyamlNesting`` when it is libyaml's limit."""
+    loader = loader_class(text)
     stack: list[_Open] = []
     anchors: dict[str, tuple[Any, int]] = {}
     nodes = documents = 0
@@ -193,6 +219,8 @@ def load_yaml(text: str) -> Any:
                 container: dict | list = {} if isinstance(event, yaml.MappingStartEvent) else []
                 stack.append(_Open(container, event.anchor, nodes))
     except yaml.YAMLError as exc:
+        if loader_class is not _PyLoader and _LIBYAML_NESTING in str(exc):
+            raise _LibyamlNesting from None
         raise InputError("", f"not valid YAML: {exc}".replace("\n", " ")) from None
     finally:
         loader.dispose()

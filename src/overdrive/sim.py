@@ -19,6 +19,7 @@ from overdrive.bus.local import LocalBus
 from overdrive.expect import check
 from overdrive.messages import Topic
 from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
+from overdrive.provenance import run_provenance
 from overdrive.recorder import Recorder
 from overdrive.run_files import finite_json
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
@@ -233,6 +234,7 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
         "channel_faults": {k: v for k, v in faults_counts.items() if v},
         "events": rec.events,
         "violations": [],
+        "provenance": run_provenance(scenario.spec, scenario.vehicle),
     }
     violations = [f"invariant {v}" for v in invariant_violations]
     for expect in scenario.spec.expect:

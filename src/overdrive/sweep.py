@@ -23,8 +23,15 @@ from typing import Any
 
 import yaml
 
+from overdrive.provenance import run_provenance
 from overdrive.run_files import finite_json, make_out_dir
-from overdrive.scenario import ScenarioError, SweepSpec, parse_scenario, read_scenario_data
+from overdrive.scenario import (
+    Scenario,
+    ScenarioError,
+    SweepSpec,
+    parse_scenario,
+    read_scenario_data,
+)
 
 JITTERED_KINDS = frozenset({
     "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
@@ -178,17 +185,17 @@ def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
     }
 
 
-def load_raw(path: Path) -> tuple[dict[str, Any], SweepSpec]:
-    """Read and validate the scenario; return its raw data and sweep block."""
+def load_raw(path: Path) -> tuple[dict[str, Any], Scenario]:
+    """Read and validate the scenario; return its raw data and the validated scenario."""
     data = read_scenario_data(path)
-    scenario = parse_scenario(data, str(path))
-    return data, scenario.spec.sweep
+    return data, parse_scenario(data, str(path))
 
 
 def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None = None,
           worst: int = 5) -> dict[str, Any]:
     """Run the sweep, write ``sweep.json``, ``runs.csv``, ``distributions.png`` and the worst runs."""
-    data, spec = load_raw(path)
+    data, scenario = load_raw(path)
+    spec = scenario.spec.sweep
     base = int(data.get("seed", 1)) if base_seed is None else base_seed
     job_list = [(*sample_run(data, i, base, spec), i) for i in range(runs)]
     job_list = [(d, str(path), i, fault) for d, fault, i in job_list]
@@ -218,6 +225,7 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
     report = {
         "scenario": str(path),
         "runs": runs,
+        "base_seed": base,
         "violations": sum(len(r["invariant_violations"]) for r in results),
         "violating_runs": [r["run"] for r in violating],
         "avoidable_violating_runs": [r["run"] for r in violating if not r["unavoidable"]],
@@ -235,6 +243,7 @@ def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None
                                      "invariant_violations")}
                   | {"replay": "overdrive sim " + str(worst_dir / "run-{}.yaml".format(r["run"]))}
                   for r in worst_runs],
+        "provenance": run_provenance(scenario.spec, scenario.vehicle),
     }
     (out_dir / "sweep.json").write_text(finite_json(report), encoding="utf-8")
     columns = ("run", "seed", "fault", "friction", "grade_percent", "authorization_margin_m",
