@@ -20,7 +20,7 @@ WHEELS ?= wheels
 WHEELS_TARGET ?=
 
 .PHONY: run test test-under-load launch-under-load lint bench clean coverage-gate interop test-variants \
-        check-env lock lock-upgrade wheels install-offline
+        check-env lock lock-upgrade wheels install-offline test-offline
 
 $(STAMP): pyproject.toml $(LOCK)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -62,6 +62,10 @@ install-offline:
 	$(PY) -m pip --isolated install --quiet --no-index --no-deps --no-build-isolation -e .
 	@touch $(STAMP)
 	@$(PY) scripts/check_env.py $(LOCK)
+
+# Both steps in a fresh clone of HEAD, the install with no network (scripts/offline-install-check.sh).
+test-offline:
+	scripts/offline-install-check.sh
 
 run: check-env
 	$(VENV)/bin/overdrive sim scenarios/demo.yaml
