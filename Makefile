@@ -75,7 +75,7 @@ lint: check-env
 
 # Safety-critical modules (issue 9): 100 % line and branch coverage, enforced.
 SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.safety.watchdog \
-                  overdrive.safety.gate overdrive.safety.monitor
+                  overdrive.safety.gate overdrive.observe.judge
 SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_monitor.py tests/safety/test_watchdog.py \
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py
 

@@ -31,7 +31,7 @@ sys.path.insert(0, str(HERE.parents[1] / "src"))
 from overdrive.bus.local import LocalBus  # noqa: E402
 from overdrive.bus.zenoh_bus import open_bus  # noqa: E402
 from overdrive.messages import Message  # noqa: E402
-from overdrive.runtime_wall import WallRuntime  # noqa: E402
+from overdrive.runtime.wall import WallRuntime  # noqa: E402
 
 HOP_MESSAGES = 2000
 HOP_RATE_HZ = 500.0
@@ -54,7 +54,7 @@ def _pct(values: list[float], q: float) -> float:
 
 
 def _port() -> int:
-    from overdrive.launch import free_port
+    from overdrive.run.launch import free_port
 
     return free_port()
 

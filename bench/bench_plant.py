@@ -11,10 +11,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from overdrive.scenario import load_scenario
-from overdrive.sim import run_scenario
+from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import load_scenario
 from overdrive.vehicle.plant import Plant, World
-from overdrive.vehicle.presets import PRESETS
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -10,7 +10,7 @@ figure by figure, as the machine is shared):
   calls the same nodes' ``step`` and hands their messages to the subscribers directly;
 - ``overdrive sim`` real-time factor: as users run it (``run.mcap`` and ``trace.csv`` written),
   with ``trace.csv`` only, and with no recording at all (wall clock, median of 3 runs);
-- MCAP: ``overdrive.mcap_writer`` next to the ``mcap`` package's ``Writer`` on the same
+- MCAP: ``overdrive.observe.mcap_writer`` next to the ``mcap`` package's ``Writer`` on the same
   messages (us per message, JSON already encoded), and the whole ``McapRecorder`` tap per bus
   message (JSON encoding and the Foxglove pose included);
 - peak resident memory (``VmHWM``, else ``ru_maxrss``) of a fresh process driving 10 minutes
@@ -33,10 +33,11 @@ from pathlib import Path
 from typing import Any
 
 from overdrive.bus.local import LocalBus
-from overdrive.player import channel_faults
-from overdrive.runtime import LockstepRuntime
-from overdrive.scenario import Scenario, load_scenario
-from overdrive.sim import build_nodes, run_scenario
+from overdrive.run.compose import build_nodes
+from overdrive.run.sim import run_scenario
+from overdrive.runtime.lockstep import LockstepRuntime
+from overdrive.scenario.player import channel_faults
+from overdrive.scenario.schema import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "scenarios" / "demo.yaml"
@@ -178,8 +179,8 @@ def mcap_costs(scenario: Scenario, repeats: int = 3) -> dict[str, float]:
     import msgspec
     from mcap.writer import CompressionType, Writer
 
-    from overdrive.mcap_log import McapRecorder
-    from overdrive.mcap_writer import McapWriter
+    from overdrive.observe.mcap_log import McapRecorder
+    from overdrive.observe.mcap_writer import McapWriter
 
     messages = bus_messages(scenario)
     encode = msgspec.json.encode
@@ -220,7 +221,7 @@ def mcap_costs(scenario: Scenario, repeats: int = 3) -> dict[str, float]:
         return best / len(messages) * 1e6
 
     return {
-        "mcap_us_per_message[overdrive.mcap_writer]": write_all(McapWriter),
+        "mcap_us_per_message[overdrive.observe.mcap_writer]": write_all(McapWriter),
         "mcap_us_per_message[mcap package Writer, baseline]": write_all(
             lambda stream: Writer(stream, compression=CompressionType.ZSTD)),
         "mcap_us_per_bus_message[McapRecorder: JSON, pose, writer]": recorder(),
@@ -230,8 +231,8 @@ def mcap_costs(scenario: Scenario, repeats: int = 3) -> dict[str, float]:
 LONG_DRIVE = """
 import json, resource, sys, tempfile
 import msgspec
-from overdrive.scenario import load_scenario
-from overdrive.sim import run_scenario
+from overdrive.scenario.schema import load_scenario
+from overdrive.run.sim import run_scenario
 s = load_scenario(sys.argv[1])
 s = msgspec.structs.replace(s, spec=msgspec.structs.replace(s.spec, duration_s=float(sys.argv[2])))
 with tempfile.TemporaryDirectory() as tmp:

@@ -21,9 +21,9 @@ from typing import Any
 HERE = Path(__file__).resolve()
 sys.path.insert(0, str(HERE.parents[1] / "src"))
 
-from overdrive.launch import Launch  # noqa: E402
 from overdrive.messages import Notice, Topic  # noqa: E402
-from overdrive.scenario import parse_scenario  # noqa: E402
+from overdrive.run.launch import Launch  # noqa: E402
+from overdrive.scenario.schema import parse_scenario  # noqa: E402
 
 RUNS = 10                       # issue 20 acceptance
 TARGET_MS = 200.0 + 10.0        # seed 001 SPSS timeout + one speed-server period

@@ -33,8 +33,8 @@ def jaus_target(data: bytes) -> None:
 
 def scenario_target(data: bytes) -> None:
     """What ``load_scenario`` does with a file's bytes, without the file."""
-    from overdrive.safe_yaml import InputError, decode_utf8
-    from overdrive.scenario import ScenarioError, load_scenario_text
+    from overdrive.scenario.safe_yaml import InputError, decode_utf8
+    from overdrive.scenario.schema import ScenarioError, load_scenario_text
 
     with contextlib.suppress(InputError, ScenarioError):
         load_scenario_text(decode_utf8(data), "fuzz.yaml")
@@ -117,7 +117,7 @@ def main() -> int:
         with atheris.instrument_imports():
             import overdrive.bus.wire
             import overdrive.jaus
-            import overdrive.scenario  # noqa: F401
+            import overdrive.scenario.schema  # noqa: F401
         atheris.Setup([sys.argv[0], *rest], target)
         atheris.Fuzz()
         return 0

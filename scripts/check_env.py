@@ -11,7 +11,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-from overdrive.provenance import LOCK_NAME, installed_versions, lock_drift, lock_entries, unlocked
+from overdrive.observe.provenance import (
+    LOCK_NAME,
+    installed_versions,
+    lock_drift,
+    lock_entries,
+    unlocked,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 

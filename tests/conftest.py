@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from overdrive.vehicle.presets import PRESETS
+from overdrive.dynamics.vehicle_params import PRESETS
 
 PRESET_NAMES = tuple(PRESETS)
 

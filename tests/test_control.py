@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from overdrive.control import Pid, PidGains, first_order_lag
+from overdrive.dynamics.control import Pid, PidGains, first_order_lag
 
 
 def test_pi_drives_first_order_plant_to_setpoint() -> None:

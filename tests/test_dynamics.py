@@ -1,4 +1,4 @@
-"""The acceleration ellipse (overdrive.dynamics): closed forms, inverses, properties."""
+"""The acceleration ellipse (overdrive.dynamics.ellipse): closed forms, inverses, properties."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from overdrive.dynamics import (
+from overdrive.dynamics.ellipse import (
     EnvelopeConfig,
     TractionMonitor,
     braking_distance_m,
@@ -21,7 +21,7 @@ from overdrive.dynamics import (
     max_safe_speed_mps,
     stopping_distance_m,
 )
-from overdrive.vehicle.presets import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 
 PRESET_NAMES = tuple(PRESETS)
 FRICTIONS = (0.3, 0.8, 0.9)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.scenario import load_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import load_scenario
 
 FAULTS = sorted((Path(__file__).resolve().parent.parent / "scenarios" / "faults").glob("*.yaml"))
 KINDS = {"drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",

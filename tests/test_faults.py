@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from overdrive.faults import ChannelFaults
+from overdrive.bus.faults import ChannelFaults
 from overdrive.messages import Topic
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.conftest import scenario_dict
 
 
@@ -83,9 +83,9 @@ def test_sensor_faults(fault: str) -> None:
 
 def test_sensor_dropout_silences_the_topic() -> None:
     from overdrive.bus.local import LocalBus
-    from overdrive.player import ScenarioPlayer, channel_faults
-    from overdrive.runtime import LockstepRuntime
-    from overdrive.sim import build_nodes
+    from overdrive.run.compose import build_nodes
+    from overdrive.runtime.lockstep import LockstepRuntime
+    from overdrive.scenario.player import ScenarioPlayer, channel_faults
 
     scenario = parse_scenario(scenario_dict(duration_s=3, events=[
         {"at_s": 1.0, "sensor": {"name": "radar", "fault": "dropout", "for_s": 1.0}}]))

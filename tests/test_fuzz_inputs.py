@@ -15,9 +15,9 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from overdrive.cli import main
+from overdrive.cli.main import main
 from overdrive.fuzzing import mutate
-from overdrive.scenario import EVENT_KINDS, ScenarioError, load_scenario, parse_scenario
+from overdrive.scenario.schema import EVENT_KINDS, ScenarioError, load_scenario, parse_scenario
 
 scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6),
                     st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=12))

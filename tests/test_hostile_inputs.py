@@ -23,10 +23,11 @@ import msgspec
 import pytest
 import yaml
 
+from overdrive.dynamics.vehicle_params import PLAUSIBLE_RANGES, PRESETS, vehicle_from_spec
 from overdrive.messages import Topic, Truth
-from overdrive.recorder import Recorder
-from overdrive.run_files import OutDirError, finite_json, make_out_dir
-from overdrive.safe_yaml import (
+from overdrive.observe.recorder import Recorder
+from overdrive.observe.run_files import OutDirError, finite_json, make_out_dir
+from overdrive.scenario.safe_yaml import (
     MAX_DEPTH,
     MAX_FILE_BYTES,
     MAX_NODES,
@@ -36,8 +37,7 @@ from overdrive.safe_yaml import (
     _PyLoader,
     load_yaml,
 )
-from overdrive.scenario import ScenarioError, load_scenario
-from overdrive.vehicle.presets import PLAUSIBLE_RANGES, PRESETS, vehicle_from_spec
+from overdrive.scenario.schema import ScenarioError, load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 BOUND_S = 5.0    # issue 18: every hostile input ends within 5 s
@@ -128,7 +128,7 @@ def overdrive(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     """The real CLI, checked to finish within ``BOUND_S`` of CPU time (``HANG_S`` of wall time:
     ``TimeoutExpired`` fails the test)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    result = subprocess.run([sys.executable, "-m", "overdrive.cli", *args], cwd=cwd,
+    result = subprocess.run([sys.executable, "-m", "overdrive.cli.main", *args], cwd=cwd,
                             capture_output=True, text=True, timeout=HANG_S,
                             env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -332,7 +332,7 @@ def test_shipped_presets_are_plausible(name: str) -> None:
 def test_vehicle_bounds_are_inclusive_and_sharp(name: str, field: str) -> None:
     """Each bound itself is accepted, one step beyond it is not (unless a cross-field check
     rejects the bound first: the geometry must still add up)."""
-    from overdrive.vehicle.presets import VehicleSpecError
+    from overdrive.dynamics.vehicle_params import VehicleSpecError
 
     low, high, _ = PLAUSIBLE_RANGES[field]
     is_int = isinstance(getattr(PRESETS[name], field), int)
@@ -383,8 +383,8 @@ def test_summary_json_of_a_run_carries_null_for_a_non_finite_figure(tmp_path: Pa
                                                                     monkeypatch) -> None:
     """A figure gone non-finite (a defect upstream) is written as null: the file stays JSON
     that strict readers (NaN refused) accept."""
-    from overdrive import sim
-    from overdrive.scenario import parse_scenario
+    from overdrive.run import sim
+    from overdrive.scenario.schema import parse_scenario
 
     make_summary = sim.make_summary
 

@@ -8,8 +8,8 @@ import random
 import msgspec
 import pytest
 
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.vehicle.plant import Plant, World
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
 
 DT_S = 0.01
 
@@ -157,7 +157,7 @@ def test_gear_shift_takes_time_and_no_drive_meanwhile(preset: VehicleParams) -> 
 
 
 def test_ranger_refuses_to_shift_while_moving() -> None:
-    from overdrive.vehicle.presets import RANGER_6X6
+    from overdrive.dynamics.vehicle_params import RANGER_6X6
 
     plant = moving_plant(RANGER_6X6, 3.0)
     plant.step(DT_S, 0.0, 0.0, 0.0, "low", True)
@@ -165,7 +165,7 @@ def test_ranger_refuses_to_shift_while_moving() -> None:
 
 
 def test_gear_top_speed_caps_speed() -> None:
-    from overdrive.vehicle.presets import RANGER_6X6
+    from overdrive.dynamics.vehicle_params import RANGER_6X6
 
     plant = moving_plant(RANGER_6X6, 0.0, World(friction=1.0))
     plant.gear = "low6wd"

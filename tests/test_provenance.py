@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from overdrive.cli import main
-from overdrive.provenance import (
+from overdrive.cli.main import main
+from overdrive.observe.provenance import (
     LOCK_NAME,
     LockEntry,
     applies,
@@ -22,8 +22,8 @@ from overdrive.provenance import (
     lock_drift,
     lock_entries,
 )
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.conftest import scenario_dict
 
 ROOT = Path(__file__).resolve().parent.parent

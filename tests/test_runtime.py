@@ -7,7 +7,7 @@ from typing import Any
 import pytest
 
 from overdrive.bus.local import LocalBus
-from overdrive.runtime import LockstepRuntime
+from overdrive.runtime.lockstep import LockstepRuntime
 
 
 class Recorder:

@@ -8,9 +8,9 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from overdrive import sim as sim_module
-from overdrive.cli import main
-from overdrive.scenario import ScenarioError, load_scenario, parse_scenario
+from overdrive.cli.main import main
+from overdrive.run.compose import build_nodes
+from overdrive.scenario.schema import ScenarioError, load_scenario, parse_scenario
 from tests.conftest import scenario_dict
 
 
@@ -85,20 +85,11 @@ def test_nan_in_event_rejected() -> None:
     assert info.value.field == "events[0].actuators.throttle_pct"
 
 
-def test_unsupported_event_kind_is_rejected_not_ignored(tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.setitem(sim_module.SERVER_MODULES, "move",
-                        ("overdrive.servers.not_built", "MoveServer", "the move server"))
-    code, output = run_cli(tmp_path, scenario_dict(
-        start="ready", events=[{"at_s": 1, "move": {"distance_m": 5, "maxspeed_mps": 1}}]))
-    assert code == 2
-    assert "events[0].move" in output and "not supported yet" in output
-
-
 def test_mixing_open_loop_and_server_events_is_rejected() -> None:
     scenario = parse_scenario(scenario_dict(events=[
         {"at_s": 1, "engine": "on"}, {"at_s": 2, "advance": {"source": "a", "distance_m": 3}}]))
     with pytest.raises(ScenarioError, match="cannot be mixed"):
-        sim_module.build_nodes(scenario)
+        build_nodes(scenario)
 
 
 def test_not_yaml_and_missing_file(tmp_path: Path) -> None:

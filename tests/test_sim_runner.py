@@ -8,10 +8,10 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from overdrive.cli import main
-from overdrive.recorder import TRACE_COLUMNS
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.cli.main import main
+from overdrive.observe.recorder import TRACE_COLUMNS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.conftest import scenario_dict
 
 CONTRACT_COLUMNS = ("t_s", "x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2",

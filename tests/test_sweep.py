@@ -10,9 +10,9 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from overdrive.cli import main
-from overdrive.scenario import SweepSpec
-from overdrive.sweep import sample_scenario, sweep
+from overdrive.cli.main import main
+from overdrive.run.sweep import sample_scenario, sweep
+from overdrive.scenario.schema import SweepSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 SPSS_LOSS = ROOT / "scenarios" / "sweep-spss-loss.yaml"
@@ -80,8 +80,8 @@ FAULTS_SWEEP = ROOT / "scenarios" / "sweep-faults.yaml"
 def test_every_swept_fault_kind_is_a_valid_scenario_event() -> None:
     import random
 
-    from overdrive.scenario import SWEPT_FAULTS, parse_scenario
-    from overdrive.sweep import fault_event
+    from overdrive.run.sweep import fault_event
+    from overdrive.scenario.schema import SWEPT_FAULTS, parse_scenario
 
     data = yaml.safe_load(FAULTS_SWEEP.read_text())
     data.pop("sweep")
@@ -97,7 +97,7 @@ def fault_sweep(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path]:
 
 
 def test_fault_sweep_draws_faults_and_reports_per_fault_and_rule(fault_sweep) -> None:
-    from overdrive.sweep import sample_run
+    from overdrive.run.sweep import sample_run
 
     data = yaml.safe_load(FAULTS_SWEEP.read_text())
     spec = SweepSpec(**{**data["sweep"], "faults": None})
@@ -144,8 +144,8 @@ BRAKE_STUCK = {"kind": "fault", "source": "speed", "code": "1133"}
 ])
 def test_a_violation_is_unavoidable_only_after_the_required_reaction(fault, rules, events, engine,
                                                                     unavoidable) -> None:
+    from overdrive.run.sweep import BRAKE_LOST_CODES, unavoidable_cause
     from overdrive.safety.actuators import ActuatorFault
-    from overdrive.sweep import BRAKE_LOST_CODES, unavoidable_cause
 
     assert {str(int(ActuatorFault.BRAKE_NOT_APPLYING)),
                                 str(int(ActuatorFault.BRAKE_FAILED))} == BRAKE_LOST_CODES

@@ -21,8 +21,8 @@ from overdrive.bus.access import (
 )
 from overdrive.bus.tool_gate import TOOL_SENDER, ToolPolicy
 from overdrive.bus.zenoh_bus import PUBLISHERS
-from overdrive.launch import stack_registry
 from overdrive.messages import Notice, PedalCommand, SetSpeed, Topic
+from overdrive.run.launch import stack_registry
 
 NODES = ("vehicle", "speed", "driving", "move")
 PEDALS = PedalCommand(throttle_pct=100.0, brake_pct=0.0, source="speed")

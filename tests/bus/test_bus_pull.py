@@ -21,8 +21,8 @@ import pytest
 import zenoh
 
 from overdrive.bus.zenoh_bus import INBOX_CAPACITY, ZenohBus, open_bus
-from overdrive.launch import free_port, stack_registry
 from overdrive.messages import MaxSpeed, Notice, PedalCommand, SetSpeed, Topic, WheelSpeed
+from overdrive.run.launch import free_port, stack_registry
 from tests.bus.waits import LOADED_TIMEOUT_S, wait_for
 
 pytestmark = pytest.mark.wallclock   # real sessions and threads: run serially (Makefile)
@@ -140,7 +140,7 @@ def test_a_topic_nobody_reads_is_not_decoded(pair) -> None:
 BUSY_RECEIVER = textwrap.dedent("""
     import mmap, sys, time
     from overdrive.bus.zenoh_bus import open_bus
-    from overdrive.launch import stack_registry
+    from overdrive.run.launch import stack_registry
     endpoint, mode, count, flag_path = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
     bus = open_bus(sender="scenario", listen=[endpoint], registry=stack_registry(),
                    pull=mode == "pull")
@@ -277,8 +277,8 @@ def test_a_launcher_stall_is_not_judged_as_a_late_emergency_stop(tmp_path: Path)
     """Red team (issue 20): the launcher's thread stalls 5 s (the nodes run on); the judge must
     see every SPSS sent meanwhile before it judges those seconds. With 4,096 samples a pump it
     judged after ~2.5 s of evidence: 'no SPSS delivered for 1654 ms', exit 1, no node e-stop."""
-    from overdrive.launch import Launch
-    from overdrive.scenario import load_scenario
+    from overdrive.run.launch import Launch
+    from overdrive.scenario.schema import load_scenario
 
     path = tmp_path / "move-stall.yaml"
     path.write_text(STALL_SCENARIO, encoding="utf-8")

@@ -22,8 +22,8 @@ from overdrive.bus.zenoh_bus import (
     open_bus,
     session_config,
 )
-from overdrive.launch import free_port, stack_registry
 from overdrive.messages import SCHEMA_VERSION, Notice, PedalCommand, SetSpeed, Topic, WheelSpeed
+from overdrive.run.launch import free_port, stack_registry
 from tests.bus.waits import LOADED_TIMEOUT_S, wait_for
 
 pytestmark = pytest.mark.wallclock   # real sessions and threads: run serially (Makefile)

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, free_port, launch_scenario
 from overdrive.messages import Topic
-from overdrive.scenario import Scenario, load_scenario, parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, free_port, launch_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import Scenario, load_scenario, parse_scenario
 from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
 from tests.bus.priority_probe import EXPECTED as EXPECTED_SCHEDULING
 
@@ -45,7 +45,7 @@ def _distance_m(a: dict, b: dict) -> float:
 
 
 def _cli(*args: str, timeout_s: float = 30.0) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "overdrive.bus_cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "overdrive.cli.bus", *args], capture_output=True,
                           text=True, timeout=timeout_s, cwd=ROOT, start_new_session=True)
 
 
@@ -56,7 +56,7 @@ def test_demo_over_processes_matches_embedded_run_and_pub_echo_work(run_dir: Pat
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     out = run_dir / "demo"
     launch = subprocess.Popen(
-        [sys.executable, "-m", "overdrive.bus_cli", "launch", str(ROOT / "scenarios" / "demo.yaml"),
+        [sys.executable, "-m", "overdrive.cli.bus", "launch", str(ROOT / "scenarios" / "demo.yaml"),
          "--out", str(out), "--listen", endpoint, "--quiet"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
@@ -108,7 +108,7 @@ def test_open_bus_driving_scenario_matches_embedded_run_and_refuses_rogue_sender
         def pub_rogue_pedals(now_s: float) -> None:
             if now_s > 3.0 and not rogue:       # full throttle from a tool, mid-drive (not blocking)
                 rogue.append(subprocess.Popen(
-                    [sys.executable, "-m", "overdrive.bus_cli", "pub", "vehicle/pedals",
+                    [sys.executable, "-m", "overdrive.cli.bus", "pub", "vehicle/pedals",
                      json.dumps({"throttle_pct": 100, "brake_pct": 0, "source": "cli"}),
                      "--connect", endpoint, "--count", "20", "--rate", "100", "--wait-s", "0"],
                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

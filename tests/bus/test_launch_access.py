@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.launch import Launch, free_port
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.launch import Launch, free_port
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.bus.conftest import HostStalled, as_stranger, check_undisturbed, retry_when_stalled
 from tests.bus.test_launch import FINAL_TOLERANCE_M, ROOT, _distance_m
 from tests.bus.waits import LOADED_TIMEOUT_S
@@ -41,7 +41,7 @@ FLOOD = 500          # a flood of stolen-name pedal commands at 1 kHz: all denie
 
 
 def _pub(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "overdrive.bus_cli", "pub", *args], cwd=ROOT,
+    return subprocess.Popen([sys.executable, "-m", "overdrive.cli.bus", "pub", *args], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True, preexec_fn=as_stranger)
 
@@ -50,7 +50,7 @@ RAW_SESSIONS = """
 import contextlib, sys, zenoh
 from overdrive.bus.access import read_tool_credentials
 from overdrive.bus.zenoh_bus import session_config
-from overdrive.launch import stack_registry
+from overdrive.run.launch import stack_registry
 from overdrive.messages import PedalCommand, SetSpeed
 node_port, endpoint, folder, puts = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 registry = stack_registry()

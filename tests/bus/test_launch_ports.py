@@ -7,8 +7,8 @@ import socket
 
 import pytest
 
-from overdrive import launch
-from overdrive.launch import LISTEN_PORTS, _endpoint_port, free_ports
+from overdrive.run import launch
+from overdrive.run.launch import LISTEN_PORTS, _endpoint_port, free_ports
 
 
 def test_ports_are_distinct_free_and_outside_the_ephemeral_range() -> None:

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from overdrive import launch as launch_mod
-from overdrive.launch import NODE_RT_PRIORITY, RUN_NICE, Launch, free_port
-from overdrive.scenario import load_scenario
+from overdrive.run import launch as launch_mod
+from overdrive.run.launch import NODE_RT_PRIORITY, RUN_NICE, Launch, free_port
+from overdrive.scenario.schema import load_scenario
 from tests.bus.priority_probe import EXPECTED, NICE_PERMITTED, RT_PERMITTED, STARTED_NICE
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux scheduling")
@@ -45,7 +45,7 @@ def _child(body: str, timeout_s: float = 60) -> subprocess.CompletedProcess[str]
 def _priority_of_a_node(prelude: str = "", rt_priority: bool = True) -> str:
     """What a node process reports about all its threads once its session is open."""
     out = _child(prelude + f"""
-    from overdrive.launch import _node_child, node_priority, scheduling
+    from overdrive.run.launch import _node_child, node_priority, scheduling
     _node_child()                       # as the launcher's preexec_fn
     node_priority({rt_priority})           # as run_node, before its session
     """ + SESSION + """
@@ -79,7 +79,7 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
     """RLIMIT_RTTIME: a thread spinning at FIFO priority would hold a CPU; the kernel ends it."""
     spinning = _child("""
         import time
-        from overdrive.launch import node_priority
+        from overdrive.run.launch import node_priority
         node_priority()
         end = time.monotonic() + 20
         while time.monotonic() < end:
@@ -89,7 +89,7 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
     assert spinning.returncode in (-signal.SIGXCPU, -signal.SIGKILL), (spinning.returncode, spinning.stdout)
     stepping = _child("""
         import time
-        from overdrive.launch import node_priority, scheduling
+        from overdrive.run.launch import node_priority, scheduling
         node_priority()
         for _ in range(300):            # 3 s of 10 ms steps, each 2 ms of work, then a sleep
             end = time.monotonic() + 0.002
@@ -105,7 +105,7 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
 def test_overdrive_node_reports_the_scheduling_it_ran_at(tmp_path, flag: str | None) -> None:
     """The CLI path end to end: ``overdrive node`` as a user starts it, judged by its report."""
     report = tmp_path / "move.json"
-    cmd = [sys.executable, "-m", "overdrive.bus_cli", "node", "move", "--duration-s", "1",
+    cmd = [sys.executable, "-m", "overdrive.cli.bus", "node", "move", "--duration-s", "1",
            "--report", str(report), "--listen", f"tcp/127.0.0.1:{free_port()}"]
     out = subprocess.run(cmd + ([flag] if flag else []), capture_output=True, text=True,
                          timeout=120, start_new_session=True)

@@ -9,14 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from overdrive import launch as launch_mod
-from overdrive.launch import Launch, NodeProcess
+from overdrive.run import launch as launch_mod
+from overdrive.run.launch import Launch, NodeProcess
 
 pytestmark = pytest.mark.wallclock   # real processes and signals
 
 WEDGED = textwrap.dedent("""
     import faulthandler, signal, sys, time
-    from overdrive.launch import DUMP_SIGNAL
+    from overdrive.run.launch import DUMP_SIGNAL
     signal.signal(signal.SIGTERM, signal.SIG_IGN)       # as a node stuck where no handler runs
     faulthandler.register(DUMP_SIGNAL, all_threads=True)
     print("ready", flush=True)

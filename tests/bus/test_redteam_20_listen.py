@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.launch import Launch, free_port
-from overdrive.scenario import load_scenario
+from overdrive.run.launch import Launch, free_port
+from overdrive.scenario.schema import load_scenario
 
 pytestmark = pytest.mark.wallclock
 
@@ -53,7 +53,7 @@ def test_a_launch_whose_listen_port_is_taken_refuses_with_a_message(
     holder, port = _held_port()
     try:
         proc = subprocess.run(
-            [sys.executable, "-m", "overdrive.bus_cli", "launch", str(scenario), "--listen",
+            [sys.executable, "-m", "overdrive.cli.bus", "launch", str(scenario), "--listen",
              f"tcp/127.0.0.1:{port}", "--out", str(tmp_path / "run"), "--quiet", "--no-plot",
              *(["--open-bus"] if open_bus else [])],
             cwd=ROOT, capture_output=True, text=True, timeout=120)

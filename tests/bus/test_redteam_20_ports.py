@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-import overdrive.launch as launch
+import overdrive.run.launch as launch
 
 
 @pytest.mark.parametrize("eph", [(20010, 65535), (20001, 60999), (20000, 32766), (1024, 65535)])

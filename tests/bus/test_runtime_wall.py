@@ -11,7 +11,7 @@ import pytest
 from overdrive.bus.local import LocalBus
 from overdrive.bus.zenoh_bus import SafeInbox
 from overdrive.messages import Notice, Topic
-from overdrive.runtime_wall import LAG_THRESHOLD, LagMonitor, WallRuntime
+from overdrive.runtime.wall import LAG_THRESHOLD, LagMonitor, WallRuntime
 
 LOADED_SLACK_S = 5.0   # a 2-core host with both cores busy may not schedule us for seconds
 
@@ -249,7 +249,7 @@ def test_a_burst_of_commands_published_together_is_read_in_one_step() -> None:
     """The move server publishes steering, max speed, authorization and mode back to back: the
     driving module steps once on them, not once each (it stepped at 245 Hz fed at 100 Hz). The
     rest of the burst arrives while the runtime waits ``TRIGGER_BURST_S`` after the first."""
-    from overdrive.runtime_wall import TRIGGER_BURST_S
+    from overdrive.runtime.wall import TRIGGER_BURST_S
 
     bus = _ThreadedBus()
     driven = _Recorder("driving", LONG_PERIOD_S, ("a", "b", "c", "d"), triggers=("a", "b", "c", "d"))
@@ -275,7 +275,7 @@ def test_a_burst_of_commands_published_together_is_read_in_one_step() -> None:
 
 
 def test_a_node_with_one_command_topic_steps_without_the_burst_wait() -> None:
-    from overdrive.runtime_wall import TRIGGER_BURST_S
+    from overdrive.runtime.wall import TRIGGER_BURST_S
 
     bus = _ThreadedBus()
     node = _Recorder("speed", LONG_PERIOD_S, (Topic.SET_SPEED,))
@@ -302,7 +302,7 @@ def test_event_driven_off_keeps_the_pure_periodic_schedule() -> None:
 
 def test_default_triggers_are_the_chain_commands_never_feedback_or_events() -> None:
     """A trigger on ``vehicle/steer`` looped move -> driving -> move at 3 kHz (found in a launch)."""
-    from overdrive.launch import build_node, preset_scenario
+    from overdrive.run.launch import build_node, preset_scenario
 
     expected = {"move": (Topic.MOVE_COMMAND,),
                 "driving": (Topic.STEERING, Topic.MAX_SPEED, Topic.ADVANCE, Topic.DRIVE_MODE),

@@ -25,7 +25,7 @@ import pytest
 from processes import started
 
 from overdrive.jaus import JausDecodeError, JausId, TerminateServiceConnection, decode_datagram
-from overdrive.xgv_sim import XgvServer
+from overdrive.run.xgv_sim import XgvServer
 from tests.xgv.xgv_helpers import ready_scenario, serving
 
 pytestmark = pytest.mark.interop

@@ -18,11 +18,11 @@ from pathlib import Path
 import pytest
 from processes import openjaus_vehicle_sim
 
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import JausId
 from overdrive.messages import PedalCommand, Topic
-from overdrive.vehicle.presets import PRESETS
+from overdrive.runtime.xgv_link import UdpPort
 from overdrive.vehicle.xgv_client import REGISTRATION_SETTLE_S, XgvClient, XgvClientConfig
-from overdrive.xgv_link import UdpPort
 
 pytestmark = pytest.mark.interop
 

@@ -7,6 +7,7 @@ import json
 import pytest
 from click.testing import CliRunner
 
+from overdrive.cli.jaus import jaus
 from overdrive.jaus import (
     ReportHeartbeatPulse,
     ReportVehicleMode,
@@ -16,7 +17,6 @@ from overdrive.jaus import (
     encode,
     encode_datagram,
 )
-from overdrive.jaus.cli import jaus
 
 REQUEST_HEX = "06 02 0D 00 01 21 01 01 01 04 02 02 01 00 00 00 06"
 MOTION_HEX = "86 02 28 E3 01 0A 01 01 01 04 02 01 0C 00 00 00 01 01 C4 89 1F 05 00 80 00 00 90 01"

@@ -16,14 +16,13 @@ from overdrive.jaus import (
     ConfirmComponentControl,
     ControlResponse,
     JausId,
-    JudpEndpoint,
-    Received,
     ReportHeartbeatPulse,
     ReportVelocityState,
     RequestComponentControl,
     SetWrenchEffort,
     encode_datagram,
 )
+from overdrive.runtime.jaus_endpoint import JudpEndpoint, Received
 
 TIMEOUT_S = 2.0
 

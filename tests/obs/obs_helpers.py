@@ -6,12 +6,13 @@ from pathlib import Path
 from typing import Any
 
 from overdrive.bus.local import LocalBus
-from overdrive.mcap_log import McapRecorder
-from overdrive.player import channel_faults
-from overdrive.recorder import Recorder
-from overdrive.runtime import LockstepRuntime
-from overdrive.scenario import Scenario, parse_scenario
-from overdrive.sim import build_nodes, run_scenario
+from overdrive.observe.mcap_log import McapRecorder
+from overdrive.observe.recorder import Recorder
+from overdrive.run.compose import build_nodes
+from overdrive.run.sim import run_scenario
+from overdrive.runtime.lockstep import LockstepRuntime
+from overdrive.scenario.player import channel_faults
+from overdrive.scenario.schema import Scenario, parse_scenario
 
 DEMO = Path(__file__).resolve().parents[2] / "scenarios" / "demo.yaml"
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from overdrive import docs
 from overdrive.messages import ALL_MESSAGES
+from overdrive.run import docs
 from overdrive.servers.speed_table import TRANSITIONS
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
@@ -24,7 +24,7 @@ def test_generated_docs_are_up_to_date(generated: dict[Path, str]) -> None:
                               DOCS / "architecture.md", DOCS / "scenarios.md"}
     for path, content in generated.items():
         assert path.read_text(encoding="utf-8") == content, (
-            f"{path.name} is stale: run `python -m overdrive.docs` and commit the result")
+            f"{path.name} is stale: run `python -m overdrive.run.docs` and commit the result")
 
 
 def test_message_reference_covers_every_field(generated: dict[Path, str]) -> None:

@@ -17,7 +17,7 @@ from overdrive.messages import DrivingStatus, Topic, Truth
 
 pytest.importorskip("foxglove")
 
-from overdrive.live import LiveView, LiveViewError
+from overdrive.observe.live import LiveView, LiveViewError
 
 SUBPROTOCOL = "foxglove.sdk.v1"   # what foxglove-sdk's server accepts
 TIMEOUT_S = 5.0
@@ -163,7 +163,7 @@ def test_live_view_refuses_non_loopback_hosts() -> None:
 
 
 def test_live_hook_reports_a_taken_port_as_usage_error() -> None:
-    from overdrive.obs_cli import start_live
+    from overdrive.cli.observe import start_live
 
     view = start_live(0)
     try:

@@ -15,7 +15,8 @@ import yaml
 from mcap.reader import make_reader
 from obs_helpers import DEMO, record_run, speed_scenario
 
-from overdrive.mcap_log import (
+from overdrive.messages import ALL_MESSAGES, DrivingStatus, Topic
+from overdrive.observe.mcap_log import (
     POSE_TOPIC,
     PUBLISHERS_TOPIC,
     TF_TOPIC,
@@ -27,9 +28,8 @@ from overdrive.mcap_log import (
     resolve_type,
     scenario_yaml,
 )
-from overdrive.messages import ALL_MESSAGES, DrivingStatus, Topic
-from overdrive.scenario import load_scenario, parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import load_scenario, parse_scenario
 
 
 def demo_ticks() -> int:

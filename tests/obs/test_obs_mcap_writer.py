@@ -1,4 +1,4 @@
-"""overdrive.mcap_writer: files the ``mcap`` package reads back whole, with every index and CRC."""
+"""overdrive.observe.mcap_writer: files the ``mcap`` package reads back whole, with every index and CRC."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
-from overdrive.mcap_writer import MAGIC, McapWriter
+from overdrive.observe.mcap_writer import MAGIC, McapWriter
 
 OP_FOOTER, OP_CHUNK, OP_MESSAGE_INDEX, OP_CHUNK_INDEX = 0x02, 0x06, 0x07, 0x08
 OP_ATTACHMENT, OP_SUMMARY_OFFSET, OP_DATA_END = 0x09, 0x0E, 0x0F

@@ -9,8 +9,8 @@ import pytest
 from click.testing import CliRunner
 from obs_helpers import record_run, speed_scenario
 
-from overdrive.obs_cli import plot as plot_command
-from overdrive.plot import (
+from overdrive.cli.observe import plot as plot_command
+from overdrive.observe.plot import (
     distributions_from_summaries,
     load_mcap,
     load_trace,

@@ -10,17 +10,17 @@ from click.testing import CliRunner
 from mcap.reader import make_reader
 from obs_helpers import record_run, speed_scenario
 
-from overdrive import player
+from overdrive.bus.faults import ChannelFaults
 from overdrive.bus.local import LocalBus
-from overdrive.faults import ChannelFaults
-from overdrive.mcap_log import PUBLISHERS_TOPIC, McapRecorder
-from overdrive.obs_cli import replay as replay_command
-from overdrive.player import channel_faults
-from overdrive.replay import ReplayError, infer_publisher, replay
-from overdrive.runtime import LockstepRuntime
-from overdrive.scenario import parse_scenario
-from overdrive.servers import speed_control
-from overdrive.sim import build_nodes
+from overdrive.cli.observe import replay as replay_command
+from overdrive.dynamics import speed_control
+from overdrive.observe.mcap_log import PUBLISHERS_TOPIC, McapRecorder
+from overdrive.run import replay as replay_module
+from overdrive.run.compose import build_nodes
+from overdrive.run.replay import ReplayError, infer_publisher, replay
+from overdrive.runtime.lockstep import LockstepRuntime
+from overdrive.scenario.player import channel_faults
+from overdrive.scenario.schema import parse_scenario
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_changed_gain_reports_the_first_differing_decision(
 def test_channel_faults_are_reapplied(speed_run: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The recording holds the dropped SPSS (taps see messages before faults): replay must drop
     it again, or the speed server's replies differ."""
-    monkeypatch.setattr(player, "channel_faults", lambda scenario: ChannelFaults())
+    monkeypatch.setattr(replay_module, "channel_faults", lambda scenario: ChannelFaults())
     report = replay(speed_run)
     assert report.differences > 0 and report.first is not None
     assert 12.4 < report.first.t_s < 12.8, report.first.describe()

@@ -6,6 +6,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 from overdrive.safety.actuators import (
     ActuatorFault,
     ActuatorMonitorConfig,
@@ -16,7 +17,6 @@ from overdrive.safety.actuators import (
     SteeringMonitor,
     brake_ratio,
 )
-from overdrive.vehicle.presets import G_MPS2, PRESETS
 from tests.conftest import PRESET_NAMES
 
 CFG = ActuatorMonitorConfig(probe_enabled=True)

@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
+from overdrive.run.sim import run_scenario
 from overdrive.safety import actuators
 from overdrive.safety.actuators import ActuatorFault, ActuatorMonitorConfig
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.conftest import PRESET_NAMES
 
 ACTUATOR_CODES = {str(int(code)) for code in ActuatorFault}

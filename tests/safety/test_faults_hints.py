@@ -12,11 +12,11 @@ from typing import Any
 
 import pytest
 
-from overdrive.scenario import load_scenario, parse_scenario
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import load_scenario, parse_scenario
 from overdrive.servers import gear_hints
 from overdrive.servers.speed_hints import HintMonitor
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import G_MPS2, PRESETS
 from tests.conftest import PRESET_NAMES
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,11 +10,11 @@ import math
 import msgspec
 import pytest
 
-from overdrive.scenario import parse_scenario
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.direction_hold import DirectionHoldConfig
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import PRESETS
 
 HOLD = DirectionHoldConfig()
 DIRECTION_FAULTS = {"1121", "1122", "1123", "1124"}

@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from overdrive.scenario import parse_scenario
+from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.move_radar import RadarConfig, RadarFault
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 MARGIN_M = RadarConfig().corridor_margin_m

@@ -26,12 +26,12 @@ from typing import Any
 
 import pytest
 
-from overdrive.scenario import parse_scenario
+from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers import speed as speed_module
 from overdrive.servers.direction_hold import FREE, DirectionFault
 from overdrive.servers.move_radar import RadarConfig
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 FAULT_CODES = {str(int(c)) for c in DirectionFault}

@@ -8,12 +8,12 @@ from typing import Any
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, Imu, Topic, WheelSpeed
+from overdrive.run.sim import run_scenario
 from overdrive.safety.plausibility import PlausibilityFault
-from overdrive.scenario import parse_scenario
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.move import MoveServer
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 SENSE_CODES = {str(int(c)) for c in PlausibilityFault}

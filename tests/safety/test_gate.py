@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from overdrive.control import clamp, rate_limit
+from overdrive.dynamics.control import clamp, rate_limit
 from overdrive.safety.gate import GateLimits, gate_pedals, gate_steer
 
 LIMITS = GateLimits(steer_rate_pct_per_s=50.0)

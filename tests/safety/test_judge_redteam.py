@@ -1,4 +1,4 @@
-"""Red team of the issue-15 judge (``overdrive.safety.monitor``): each test failed against the
+"""Red team of the issue-15 judge (``overdrive.observe.judge``): each test failed against the
 first version of the judge because of a defect of the judge, not of the stack, and is kept.
 
 - false negatives: unsafe runs the judge passes, or whose amount it understates;
@@ -20,6 +20,7 @@ from typing import Any
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -28,12 +29,11 @@ from overdrive.messages import (
     Topic,
     Truth,
 )
-from overdrive.safety.monitor import Monitor, physical_decel_mps2
-from overdrive.scenario import parse_scenario
+from overdrive.observe.judge import Monitor, physical_decel_mps2
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers import speed as speed_module
-from overdrive.sim import run_scenario
 from overdrive.vehicle.plant import Plant, World
-from overdrive.vehicle.presets import ESCAPE_HYBRID
 from tests.safety.test_monitor import DT, Clock, move, rules
 
 
@@ -314,7 +314,7 @@ def test_a_scenario_source_may_not_be_named_move(kind: str) -> None:
     ``move`` drove the vehicle 19.8 m and the judge reported "moved 19.801 m with no command",
     and an overrun of it would not have been judged. Decided: ``move`` is a reserved source
     name; such a scenario is refused (exit 2) naming the field."""
-    from overdrive.scenario import ScenarioError
+    from overdrive.scenario.schema import ScenarioError
 
     body = {"source": "move", "distance_m": 20} if kind == "advance" else \
         {"source": "move", "speed_mps": 2}

@@ -15,10 +15,10 @@ from typing import Any
 import pytest
 
 from overdrive.messages import Topic
-from overdrive.scenario import parse_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.run.sweep import sweep
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers import speed as speed_module
-from overdrive.sim import run_scenario
-from overdrive.sweep import sweep
 from overdrive.vehicle.sim_node import VehicleSim
 from tests.conftest import PRESET_NAMES
 
@@ -94,7 +94,7 @@ def test_the_watchdog_judges_spss_as_delivered_not_as_issued(monkeypatch) -> Non
 def test_non_finite_runs_never_exit_0(tmp_path: Path, mass_kg: float) -> None:
     """A run whose physics goes non-finite is a violation (exit 1) unless its file is refused
     first (exit 2); summary.json stays strict JSON either way."""
-    from overdrive.scenario import ScenarioError
+    from overdrive.scenario.schema import ScenarioError
 
     data = {"name": "nan", "vehicle": {"preset": "escape-hybrid", "mass_kg": mass_kg},
             "start": "ready", "duration_s": 3, "events": [
@@ -160,8 +160,8 @@ def test_freeze_repeats_the_last_real_reading_from_its_first_use() -> None:
 
 
 def test_vehicle_sim_keeps_the_last_readings_without_any_fault() -> None:
+    from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
     from overdrive.vehicle.plant import World
-    from overdrive.vehicle.presets import ESCAPE_HYBRID
 
     sim = VehicleSim(ESCAPE_HYBRID, World(), 1, ready=True)
     sim.step(0.0, [])
@@ -173,7 +173,7 @@ def test_vehicle_sim_keeps_the_last_readings_without_any_fault() -> None:
 def test_shipped_scenarios_are_judged(name: str) -> None:
     """Every shipped scenario passes the judge (xgv runs need sockets: tests/xgv; sweeps are
     run by tests/test_sweep.py)."""
-    from overdrive.scenario import load_scenario
+    from overdrive.scenario.schema import load_scenario
 
     result = run_scenario(load_scenario(ROOT / "scenarios" / name), None, keep_trace=False,
                           plot=False, record_mcap=False)
@@ -405,9 +405,9 @@ def test_a_lapsed_limit_source_stops_the_vehicle_gently() -> None:
 
 
 def test_the_computer_cannot_switch_the_engine_under_manual_override() -> None:
+    from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
     from overdrive.messages import PowertrainCommand, SafetyDevices
     from overdrive.vehicle.plant import World
-    from overdrive.vehicle.presets import ESCAPE_HYBRID
 
     sim = VehicleSim(ESCAPE_HYBRID, World(), 1, ready=True)
     sim.step(0.0, [(Topic.SAFETY, SafetyDevices(manual_override=True))])

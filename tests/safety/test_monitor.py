@@ -7,6 +7,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID, G_MPS2, PRESETS
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -21,7 +22,7 @@ from overdrive.messages import (
     Truth,
     VehicleStatus,
 )
-from overdrive.safety.monitor import (
+from overdrive.observe.judge import (
     LIMIT_RAMP_DECEL_MPS2,
     MAX_SPEED_TTL_S,
     Monitor,
@@ -29,9 +30,8 @@ from overdrive.safety.monitor import (
     physical_decel_mps2,
     shortest_stop_m,
 )
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import ESCAPE_HYBRID, G_MPS2, PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.conftest import PRESET_NAMES, scenario_dict
 
 DT = 0.01

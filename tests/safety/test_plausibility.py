@@ -8,9 +8,9 @@ import random
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import GpsIns, Imu, WheelSpeed
 from overdrive.safety.plausibility import MotionPlausibility, PlausibilityConfig, PlausibilityFault
-from overdrive.vehicle.presets import G_MPS2
 
 DT = 0.01
 CFG = PlausibilityConfig()

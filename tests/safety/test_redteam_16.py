@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from tests.conftest import PRESET_NAMES
 
 

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from overdrive.scenario import parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 
 
 def run(events: list[dict], *, duration_s: float, vehicle: Any = "escape-hybrid",

@@ -6,12 +6,12 @@ import math
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 from overdrive.messages import GpsIns, Imu, Topic, WheelSpeed
 from overdrive.safety.plausibility import PlausibilityFault
 from overdrive.servers.driving import DrivingModule
 from overdrive.servers.move import MoveServer
 from overdrive.servers.speed import SpeedServer
-from overdrive.vehicle.presets import G_MPS2, PRESETS
 from tests.conftest import PRESET_NAMES
 
 DT_S = 0.01

@@ -6,6 +6,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, SetSpeed, Topic, VehicleStatus, WheelSpeed
 from overdrive.safety.actuators import (
     ActuatorFault,
@@ -14,7 +15,6 @@ from overdrive.safety.actuators import (
     SteeringMonitor,
 )
 from overdrive.servers.speed import SpeedServer
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 

@@ -6,8 +6,8 @@ import ast
 import re
 from pathlib import Path
 
-from overdrive.safety import RULES
-from overdrive.safety import monitor as monitor_module
+from overdrive.observe import judge as monitor_module
+from overdrive.observe.judge import RULES
 
 ROOT = Path(__file__).resolve().parents[2]
 LOG = ROOT / "docs" / "safety-case.md"

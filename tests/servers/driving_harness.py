@@ -11,6 +11,7 @@ import math
 from collections import deque
 from typing import Any
 
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import (
     GpsIns,
     SetSpeed,
@@ -20,7 +21,6 @@ from overdrive.messages import (
     VehicleStatus,
 )
 from overdrive.servers.driving import DrivingConfig, DrivingModule
-from overdrive.vehicle.presets import VehicleParams
 
 DT_S = 0.01
 

@@ -6,11 +6,11 @@ from typing import Any
 
 from overdrive.bus.local import LocalBus
 from overdrive.messages import Topic
-from overdrive.player import channel_faults
-from overdrive.recorder import Recorder
-from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime
-from overdrive.scenario import parse_scenario
-from overdrive.sim import build_nodes
+from overdrive.observe.recorder import Recorder
+from overdrive.run.compose import build_nodes
+from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, LockstepRuntime
+from overdrive.scenario.player import channel_faults
+from overdrive.scenario.schema import parse_scenario
 
 
 class Run:

@@ -7,6 +7,8 @@ import math
 
 import pytest
 
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.servers.direction_hold import (
     EVENTS,
     SOURCES_AGREE_MPS,
@@ -19,8 +21,6 @@ from overdrive.servers.direction_hold import (
     mermaid_diagram,
     next_state,
 )
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 DT_S = 0.01

@@ -6,6 +6,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import AdvanceAuthorization, DriveMode, MaxSpeed, Topic
 from overdrive.servers.driving import (
     REQUEST_TOWARD,
@@ -17,7 +18,6 @@ from overdrive.servers.driving import (
     wants_low_gear,
 )
 from overdrive.servers.speed_table import REQUESTABLE
-from overdrive.vehicle.presets import PRESETS
 from tests.servers.driving_harness import outputs, sensors
 
 PRESET_NAMES = tuple(PRESETS)

@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from overdrive.dynamics import ellipse_for, max_safe_speed_mps
+from overdrive.dynamics.ellipse import ellipse_for, max_safe_speed_mps
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -27,7 +28,6 @@ from overdrive.servers.driving import (
     limit_curvature,
     steer_pct_for,
 )
-from overdrive.vehicle.presets import PRESETS
 from tests.servers.driving_harness import IdealLoop, outputs, sensors
 
 PRESET_NAMES = tuple(PRESETS)

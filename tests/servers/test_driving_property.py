@@ -10,10 +10,10 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from overdrive.dynamics import braking_distance_m, ellipse_for, load_axes_mps2
+from overdrive.dynamics.ellipse import braking_distance_m, ellipse_for, load_axes_mps2
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 from overdrive.messages import AdvanceAuthorization, MaxSpeed, SteeringRequest, Topic
 from overdrive.servers.driving import DrivingConfig
-from overdrive.vehicle.presets import G_MPS2, PRESETS
 from tests.servers.driving_harness import DT_S, IdealLoop, outputs
 
 DELAY_S = 0.3          # ideal plant's response delay, below the module's reaction allowance

@@ -8,6 +8,7 @@ import math
 import msgspec
 import pytest
 
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 from overdrive.servers.driving import DrivingConfig
 from overdrive.servers.gear_hints import (
     GearHintConfig,
@@ -16,7 +17,6 @@ from overdrive.servers.gear_hints import (
     time_to_cover_s,
     worth_changing_now,
 )
-from overdrive.vehicle.presets import G_MPS2, PRESETS
 from tests.conftest import PRESET_NAMES
 
 CFG = DrivingConfig()

@@ -10,10 +10,10 @@ import math
 import msgspec
 import pytest
 
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.servers.direction_hold import DirectionFault, DirectionHold, DirectionHoldConfig
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
 from overdrive.servers.speed_hints import HintConfig, HintMonitor
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 from tests.servers.test_speed_hints import CAP, hint_after, lugging_view
 

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.servers.adaptive import ActuatorModel, AdaptiveConfig, RatioEstimator
 from overdrive.servers.move_conditions import ConditionMonitor
 from overdrive.vehicle.plant import ActuatorFaults, Plant, World
-from overdrive.vehicle.presets import G_MPS2
 
 DT = 0.01
 

@@ -8,14 +8,14 @@ from pathlib import Path
 import pytest
 
 from overdrive.bus.local import LocalBus
-from overdrive.dynamics import ellipse_for
+from overdrive.dynamics.ellipse import ellipse_for
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import Topic
-from overdrive.move_sim import simulation_nodes
-from overdrive.runtime import LockstepRuntime
-from overdrive.scenario import load_scenario
+from overdrive.run.move_sim import simulation_nodes
+from overdrive.run.sim import run_scenario
+from overdrive.runtime.lockstep import LockstepRuntime
+from overdrive.scenario.schema import load_scenario
 from overdrive.servers.adaptive import ESTIMATES_TOPIC
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import PRESETS
 from tests.servers.move_harness import simulate
 
 PRESET_NAMES = tuple(PRESETS)

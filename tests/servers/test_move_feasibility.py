@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from overdrive.dynamics import ellipse_for
+from overdrive.dynamics.ellipse import ellipse_for
 from overdrive.messages import MoveCommand
 from overdrive.servers.move_feasibility import Situation, check_command, top_speed_mps
 
@@ -60,7 +60,7 @@ def test_malformed_messages_are_invalid(preset) -> None:
 @given(st.floats(allow_nan=True, allow_infinity=True), st.floats(allow_nan=True, allow_infinity=True),
        st.floats(allow_nan=True, allow_infinity=True))
 def test_property_no_crash_and_non_finite_never_accepted(d: float, v: float, k: float) -> None:
-    from overdrive.vehicle.presets import ESCAPE_HYBRID
+    from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
     verdict = check_command(move(distance=d, speed=v, curvature=k), OK, ESCAPE_HYBRID)
     if not all(math.isfinite(x) for x in (d, v, k)) or d < 0 or v < 0:
         assert verdict is not None and verdict.code == "invalid"

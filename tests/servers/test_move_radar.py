@@ -7,6 +7,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, MoveCommand, Radar
 from overdrive.servers.move_radar import (
     RadarConfig,
@@ -15,7 +16,6 @@ from overdrive.servers.move_radar import (
     in_corridor,
     path_offset,
 )
-from overdrive.vehicle.presets import PRESETS
 from tests.conftest import PRESET_NAMES
 
 CFG = RadarConfig()

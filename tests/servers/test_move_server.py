@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -32,7 +33,6 @@ from overdrive.servers.move import (
     mermaid_diagram,
     next_phase,
 )
-from overdrive.vehicle.presets import G_MPS2
 
 
 def sensors(params, *, speed: float = 0.0, odo: float = 0.0, state: str = "run",
@@ -258,7 +258,7 @@ def test_radar_obstacle_inside_stopping_distance_is_an_emergency_stop(preset) ->
 def test_estop_threshold_swept_around_the_stopping_distance(preset, speed: float) -> None:
     probe = MoveServer(preset)
     run(probe, 0.0, 0.05, (cmd(d=100.0, v=speed),), speed=speed)
-    from overdrive.dynamics import stopping_distance_m
+    from overdrive.dynamics.ellipse import stopping_distance_m
     reach = stopping_distance_m(probe._brake_ellipse(), speed, 0.0, 0.0, 0.0,
                                 probe.config.estop_reaction_s) + probe.config.estop_margin_m
     for rng, expect in ((reach + 0.05, False), (reach - 0.05, True)):

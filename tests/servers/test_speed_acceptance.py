@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.scenario import load_scenario, parse_scenario
-from overdrive.sim import run_scenario
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import load_scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 DRIVE_GEAR = {"escape-hybrid": "drive", "ranger-6x6": "high"}

@@ -12,11 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from overdrive import messages
-from overdrive.scenario import parse_scenario
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS, VehicleParams
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.speed import SpeedServerConfig
 from overdrive.servers.speed_hints import HINTS, HintConfig, HintInputs, HintMonitor
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import G_MPS2, PRESETS, VehicleParams
 from tests.conftest import PRESET_NAMES
 
 PERIOD_S = 0.01

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from overdrive.dynamics.vehicle_params import PRESETS, VehicleParams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -23,7 +24,6 @@ from overdrive.messages import (
 )
 from overdrive.servers.speed import SpeedServer, SpeedServerConfig
 from overdrive.servers.speed_table import STATE_TABLE, STATES, FaultCode
-from overdrive.vehicle.presets import PRESETS, VehicleParams
 
 PERIOD_S = 0.01
 PRESET_NAMES = sorted(PRESETS)

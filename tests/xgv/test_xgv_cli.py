@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from overdrive.cli import main
+from overdrive.cli.main import main
 
 
 @pytest.mark.parametrize("address", ["nohost:", ":3794", "host:99999", "host:abc"])

@@ -19,9 +19,7 @@ from overdrive.jaus import (
     ControlResponse,
     CreateServiceConnection,
     JausId,
-    JudpEndpoint,
     QueryHeartbeatPulse,
-    Received,
     ReportHeartbeatPulse,
     ReportVelocityState,
     RequestComponentControl,
@@ -29,8 +27,9 @@ from overdrive.jaus import (
     ServiceConnectionResponse,
     SetWrenchEffort,
 )
+from overdrive.run.xgv_sim import XgvServer
+from overdrive.runtime.jaus_endpoint import JudpEndpoint, Received
 from overdrive.vehicle.xgv import MAX_PEERS, PEER_TIMEOUT_S
-from overdrive.xgv_sim import XgvServer
 from tests.interop.processes import started, xgv_sim
 from tests.xgv.xgv_helpers import ready_scenario, serving
 

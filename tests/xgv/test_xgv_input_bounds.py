@@ -7,8 +7,8 @@ import select
 import socket
 
 from overdrive.jaus import QueryHeartbeatPulse, encode_datagram
-from overdrive.xgv_link import LoopbackLink, UdpPort
-from overdrive.xgv_sim import MAX_PER_ADDRESS_PER_TICK, MAX_UNTRUSTED_PER_TICK, Admission
+from overdrive.run.xgv_sim import MAX_PER_ADDRESS_PER_TICK, MAX_UNTRUSTED_PER_TICK, Admission
+from overdrive.runtime.xgv_link import LoopbackLink, UdpPort
 
 CONTROLLER = ("127.0.0.1", 40000)
 

@@ -12,7 +12,8 @@ import msgspec
 import pytest
 from click.testing import CliRunner
 
-from overdrive.cli import main
+from overdrive.cli.main import main
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import (
     ComponentStatus,
     ConfirmComponentControl,
@@ -33,8 +34,9 @@ from overdrive.jaus import (
     encode_datagram,
 )
 from overdrive.messages import GpsIns, Topic, VehicleStatus
-from overdrive.scenario import Scenario, load_scenario
-from overdrive.sim import build_nodes, run_scenario
+from overdrive.run.compose import build_nodes, lockstep_nodes, plain_profile_problem
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import Scenario, load_scenario
 from overdrive.vehicle.plain_jaus import (
     DEFAULT_POSITION_RMS_M,
     JUMP_NOISE_SIGMAS,
@@ -46,14 +48,12 @@ from overdrive.vehicle.plain_jaus import (
     local_radii_m,
     safety_mode_from_status,
 )
-from overdrive.vehicle.presets import PRESETS
 from overdrive.vehicle.xgv_client import (
     ODOMETER_GAP_S,
     REGISTRATION_SETTLE_S,
     XgvClient,
     XgvClientConfig,
 )
-from overdrive.xgv_link import lockstep_nodes, plain_profile_problem
 from tests.conftest import PRESET_NAMES
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"

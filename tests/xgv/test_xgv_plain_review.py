@@ -30,7 +30,8 @@ from overdrive.jaus import (
     encode_datagram,
 )
 from overdrive.messages import PedalCommand, Topic, VehicleStatus
-from overdrive.sim import build_nodes, run_scenario
+from overdrive.run.compose import build_nodes, lockstep_nodes
+from overdrive.run.sim import run_scenario
 from overdrive.vehicle.plain_jaus import (
     MAX_ABS_LATITUDE_DEG,
     MAX_POSITION_RMS_M,
@@ -50,7 +51,6 @@ from overdrive.vehicle.xgv_client import (
     CONTROL_QUERY_PERIOD_S,
     XgvClient,
 )
-from overdrive.xgv_link import lockstep_nodes
 from tests.conftest import PRESET_NAMES
 from tests.xgv.test_xgv_plain_profile import ME, PD, controlling, deliver, fix, ready, report, sent
 

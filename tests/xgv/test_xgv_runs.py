@@ -14,13 +14,13 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from overdrive.cli import main
+from overdrive.cli.main import main
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import PedalCommand, SteerCommand, Topic
-from overdrive.scenario import Scenario, load_scenario, parse_scenario
-from overdrive.sim import run_scenario
-from overdrive.vehicle.presets import PRESETS
+from overdrive.run.sim import run_scenario
+from overdrive.runtime.xgv_link import LoopbackLink
+from overdrive.scenario.schema import Scenario, load_scenario, parse_scenario
 from overdrive.vehicle.xgv_client import ESTOP_DECEL_MPS2, XgvClient, XgvClientConfig
-from overdrive.xgv_link import LoopbackLink
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 SAME_PLACE_M = 0.5   # issue 7: embedded and jaus runs end within 0.5 m of each other
@@ -132,7 +132,7 @@ def test_overdrive_drive_against_xgv_sim_in_wall_clock_time(tmp_path: Path) -> N
             "expect": [{"final_speed_below_mps": 0.05}, {"odometer_between_m": [1.2, 1.55]}]}
     path = tmp_path / "drive.yaml"
     path.write_text(yaml.safe_dump(data))
-    xgv = subprocess.Popen([sys.executable, "-m", "overdrive.cli", "xgv-sim", "--port", "0",
+    xgv = subprocess.Popen([sys.executable, "-m", "overdrive.cli.main", "xgv-sim", "--port", "0",
                             "--scenario", str(path), "--duration-s", "60"],
                            stderr=subprocess.PIPE, text=True)
     try:

@@ -19,10 +19,8 @@ from overdrive.jaus import (
     ControlResponse,
     CreateServiceConnection,
     JausId,
-    JudpEndpoint,
     QueryHeartbeatPulse,
     QueryVelocityState,
-    Received,
     RejectComponentControl,
     ReleaseComponentControl,
     ReportHeartbeatPulse,
@@ -34,7 +32,8 @@ from overdrive.jaus import (
     SetWrenchEffort,
 )
 from overdrive.messages import SafetyDevices
-from overdrive.xgv_sim import XgvServer
+from overdrive.run.xgv_sim import XgvServer
+from overdrive.runtime.jaus_endpoint import JudpEndpoint, Received
 from tests.xgv.xgv_helpers import ready_scenario, serving
 
 TIMEOUT_S = 3.0

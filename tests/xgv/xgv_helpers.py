@@ -9,8 +9,8 @@ from typing import Any
 
 import msgspec
 
+from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import Header, JausId, Message, decode_datagram, encode_datagram
-from overdrive.vehicle.presets import PRESETS
 from overdrive.vehicle.xgv import XgvSimulator
 
 CLIENT = JausId(1, 2, 4, 1)
@@ -68,7 +68,7 @@ SERVE_S = 60.0
 
 
 def ready_scenario() -> Any:
-    from overdrive.scenario import parse_scenario
+    from overdrive.scenario.schema import parse_scenario
 
     return parse_scenario(READY_SCENARIO, "<test>")
 

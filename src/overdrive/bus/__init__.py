@@ -1,4 +1,11 @@
-"""Message buses: publish/subscribe by topic. ``LocalBus`` is the in-process default."""
+"""overdrive.bus: message buses, publish/subscribe by topic. ``LocalBus`` (``local``) is the
+in-process default; ``zenoh_bus`` carries the same messages between processes and machines
+(``wire``: the frames, ``access``: who may publish what, ``tool_gate``: the relay for tools);
+``faults`` is the channel model that drops, delays, duplicates or reorders a channel's messages.
+
+Layer 5. May import ``messages`` (and the codecs); it needs nothing of the layers between.
+Must not import ``runtime``, ``scenario`` or anything above: it knows topics, not nodes.
+"""
 
 from overdrive.bus.local import Inbox, LocalBus
 

@@ -1,4 +1,8 @@
-"""JAUS 3.3 for the ByWire XGV: a sans-IO codec, JUDP framing, and a UDP endpoint.
+"""overdrive.jaus: JAUS 3.3 for the ByWire XGV: a sans-IO codec and JUDP framing (the UDP
+endpoint that carries them is ``overdrive.runtime.jaus_endpoint``).
+
+Layer 1, the bottom, beside ``messages``: bytes to typed messages and back. May import nothing
+of overdrive but its own modules. Must not import anything above, nor open a socket.
 
 >>> from overdrive.jaus import SetWrenchEffort, decode, encode
 >>> wire = encode(SetWrenchEffort.xgv(throttle_pct=50, brake_pct=25))
@@ -114,7 +118,6 @@ from overdrive.jaus.messages import (
     XgvSecondaryStatus,
     safety_mode_name,
 )
-from overdrive.jaus.transport import EndpointStats, JudpEndpoint, Received
 
 __all__ = [
     "BROADCAST",
@@ -141,7 +144,6 @@ __all__ = [
     "ControlResponse",
     "CreateServiceConnection",
     "DataFlag",
-    "EndpointStats",
     "Gear",
     "Header",
     "Horn",
@@ -150,7 +152,6 @@ __all__ = [
     "JausError",
     "JausId",
     "JausTimestamp",
-    "JudpEndpoint",
     "Lights",
     "Message",
     "Motion",
@@ -171,7 +172,6 @@ __all__ = [
     "QueryVelocityState",
     "QueryWrenchEffort",
     "ReadyMode",
-    "Received",
     "RejectComponentControl",
     "ReleaseComponentControl",
     "ReportComponentAuthority",

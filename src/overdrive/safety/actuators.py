@@ -30,8 +30,7 @@ import math
 
 import msgspec
 
-from overdrive.vehicle.plant import AIR_DENSITY_KGPM3
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.dynamics.vehicle_params import AIR_DENSITY_KGPM3, G_MPS2, VehicleParams
 
 
 class ActuatorFault(enum.IntEnum):

@@ -12,7 +12,7 @@ import math
 
 import msgspec
 
-from overdrive.control import rate_limit
+from overdrive.dynamics.control import rate_limit
 
 
 class GateLimits(msgspec.Struct, frozen=True, forbid_unknown_fields=True):

@@ -42,8 +42,8 @@ from collections import deque
 
 import msgspec
 
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import GpsIns, Imu, Notice, WheelSpeed
-from overdrive.vehicle.presets import G_MPS2
 
 SETTLE_S = 0.5
 """After a stop, IMU evidence counts from this long after the speed sources began repeating: a

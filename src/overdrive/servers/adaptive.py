@@ -31,9 +31,9 @@ import math
 
 import msgspec
 
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import Message
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
 
 ESTIMATES_TOPIC = "move/estimates"
 """Topic of ``ActuatorEstimates`` (published by the move server at ``estimates_period_s``)."""

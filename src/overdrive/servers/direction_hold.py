@@ -47,9 +47,9 @@ from typing import Final, Literal
 
 import msgspec
 
-from overdrive.control import first_order_lag
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
+from overdrive.dynamics.control import first_order_lag
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import G_MPS2, Gear, VehicleParams
 
 
 class DirectionFault(enum.IntEnum):

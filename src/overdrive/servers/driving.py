@@ -7,7 +7,7 @@ still stop within the most restrictive authorization, under the acceleration ell
 reaction allowance for the speed server's latency, capped by the lowest live speed limit, the
 gear and the lateral limit of the curve), rate-limits the curvature inside the ellipse, and
 sequences the speed server (seed 001) as its only client. Design and formulas:
-docs/driving-module.md; the ellipse: ``overdrive.dynamics``.
+docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
 
 Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
 ``Notice(kind="rejected")`` for every rejected input.
@@ -21,8 +21,8 @@ from typing import Any
 
 import msgspec
 
-from overdrive.control import rate_limit
-from overdrive.dynamics import (
+from overdrive.dynamics.control import rate_limit
+from overdrive.dynamics.ellipse import (
     DEFAULT_ENVELOPE,
     Braking,
     Ellipse,
@@ -36,6 +36,8 @@ from overdrive.dynamics import (
     load_axes_mps2,
     tyre_longitudinal_mps2,
 )
+from overdrive.dynamics.validation import finite
+from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -56,8 +58,6 @@ from overdrive.safety.actuators import SteeringMonitor
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.gear_hints import GearHints
-from overdrive.validation import finite
-from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
 SOURCE = "driving"
 TIME_EPS_S = 1e-9   # slack when comparing simulated times built from integer ticks

@@ -26,9 +26,9 @@ import math
 
 import msgspec
 
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.servers.speed_hints import HintConfig
-from overdrive.vehicle.presets import VehicleParams
 
 _LUG = HintConfig()   # the speed server's lugging thresholds, defaults
 

@@ -52,7 +52,7 @@ from typing import Any
 
 import msgspec
 
-from overdrive.dynamics import (
+from overdrive.dynamics.ellipse import (
     DEFAULT_ENVELOPE,
     Braking,
     Ellipse,
@@ -61,6 +61,8 @@ from overdrive.dynamics import (
     lateral_speed_limit_mps,
     max_safe_speed_mps,
 )
+from overdrive.dynamics.validation import finite
+from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -86,8 +88,6 @@ from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
-from overdrive.validation import finite
-from overdrive.vehicle.presets import G_MPS2, GearTable, VehicleParams
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9

@@ -27,7 +27,7 @@ import math
 
 import msgspec
 
-from overdrive.vehicle.presets import VehicleParams
+from overdrive.dynamics.vehicle_params import VehicleParams
 
 
 class ConditionConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):

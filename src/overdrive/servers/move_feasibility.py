@@ -27,10 +27,10 @@ from typing import Literal
 
 import msgspec
 
-from overdrive.dynamics import Ellipse, stopping_distance_m
+from overdrive.dynamics.ellipse import Ellipse, stopping_distance_m
+from overdrive.dynamics.validation import finite
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import MoveCommand
-from overdrive.validation import finite
-from overdrive.vehicle.presets import VehicleParams
 
 ReplyCode = Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale"]
 KINDS = ("move", "reverse", "stop")

@@ -17,8 +17,8 @@ from typing import Any
 
 import msgspec
 
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import GpsIns, MoveCommand, MoveReply, MoveStatus, Topic
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
 
 
 class PlannerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):

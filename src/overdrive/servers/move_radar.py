@@ -47,8 +47,8 @@ from collections.abc import Iterable
 
 import msgspec
 
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import GpsIns, MoveCommand, Notice, Radar
-from overdrive.vehicle.presets import VehicleParams
 
 SOURCE = "move"
 STRAIGHT_1PM = 1e-6   # below this curvature the arc is treated as a straight line

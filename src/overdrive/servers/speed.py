@@ -31,7 +31,14 @@ from typing import Any
 
 import msgspec
 
-from overdrive.control import first_order_lag
+from overdrive.dynamics.control import first_order_lag
+from overdrive.dynamics.speed_control import (
+    LongitudinalController,
+    LongitudinalGains,
+    gains_for,
+)
+from overdrive.dynamics.validation import finite
+from overdrive.dynamics.vehicle_params import G_MPS2, Gear, GearTable, VehicleParams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -48,11 +55,6 @@ from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
-from overdrive.servers.speed_control import (
-    LongitudinalController,
-    LongitudinalGains,
-    gains_for,
-)
 from overdrive.servers.speed_hints import HintConfig, HintInputs, HintMonitor
 from overdrive.servers.speed_table import (
     CLIENT_FAULT_MAX,
@@ -65,8 +67,6 @@ from overdrive.servers.speed_table import (
     fault_message,
     next_state,
 )
-from overdrive.validation import finite
-from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
 
 SOURCE = "speed"
 INITIAL_GOAL = {"reset": "paused", "starting": "paused", "startwait": "paused",

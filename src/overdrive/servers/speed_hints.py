@@ -35,8 +35,8 @@ import math
 
 import msgspec
 
-from overdrive.servers.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.vehicle.presets import Gear, VehicleParams
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
+from overdrive.dynamics.vehicle_params import Gear, VehicleParams
 
 HINTS = ("none", "suggest_upshift", "suggest_downshift", "suggest_slowdown", "slipping")
 

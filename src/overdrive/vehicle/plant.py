@@ -33,13 +33,17 @@ import random
 
 import msgspec
 
-from overdrive.vehicle.presets import G_MPS2, Gear, GearTable, VehicleParams
+from overdrive.dynamics.vehicle_params import (
+    AIR_DENSITY_KGPM3,
+    G_MPS2,
+    Gear,
+    GearTable,
+    VehicleParams,
+)
 
-AIR_DENSITY_KGPM3 = 1.225      # ISA sea level
 STOPPED_MPS = 1e-3             # below this the vehicle is treated as at rest
 SHIFT_STOPPED_MPS = 0.05       # "stopped" for a gearbox that only shifts at a standstill
 PARK_REVERSE_MAX_MPS = 1.0     # no gearbox engages park or reverse faster than this
-DRY_MU = 0.9                   # friction the preset's braking and skid-pad figures were measured on
 
 
 class World(msgspec.Struct, frozen=True, forbid_unknown_fields=True):

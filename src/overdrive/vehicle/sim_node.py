@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 import msgspec
 
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -34,7 +35,6 @@ from overdrive.safety.gate import GateLimits, gate_pedals, gate_steer
 from overdrive.safety.watchdog import Watchdog
 from overdrive.vehicle.modes import PAUSE_MODES, computer_axes, safety_mode
 from overdrive.vehicle.plant import STOPPED_MPS, ActuatorFaults, Plant, World
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
 
 PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration" (seed 000); XGV default-like
 PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort

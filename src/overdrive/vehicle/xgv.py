@@ -42,7 +42,9 @@ from typing import Any, Final
 
 import msgspec
 
-from overdrive.control import Pid, PidGains, rate_limit
+from overdrive.dynamics.control import Pid, PidGains, rate_limit
+from overdrive.dynamics.speed_control import LongitudinalController, gains_for
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.jaus import (
     ActivateServiceConnection,
     ClearEmergency,
@@ -114,7 +116,6 @@ from overdrive.jaus.messages import LINK_STATUS_SHIFT
 from overdrive.jaus.multipacket import Reassembler
 from overdrive.messages import SafetyDevices, Topic
 from overdrive.safety.gate import GateLimits
-from overdrive.servers.speed_control import LongitudinalController, gains_for
 from overdrive.vehicle.modes import (
     CONTROL_MODE_CODE,
     LINK_CODE,
@@ -131,8 +132,7 @@ from overdrive.vehicle.modes import (
 )
 from overdrive.vehicle.plain_jaus import local_radii_m
 from overdrive.vehicle.plant import World
-from overdrive.vehicle.presets import VehicleParams
-from overdrive.vehicle.sim_node import PAUSE_DECEL_MPS2, VehicleSim
+from overdrive.vehicle.sim_node import FAULTS_TOPIC, PAUSE_DECEL_MPS2, VehicleSim
 
 Address = tuple[str, int]
 Outgoing = list[tuple[bytes, Address]]
@@ -399,8 +399,6 @@ class XgvSimulator:
 
     def apply_fault(self, fault: Any) -> None:
         """A scenario fault for the vehicle (as VehicleSim takes them on ``sim/faults``)."""
-        from overdrive.vehicle.sim_node import FAULTS_TOPIC
-
         self.core._receive([(FAULTS_TOPIC, fault)], [])
 
     # ------------------------------------------------------------------ modes

@@ -3,7 +3,7 @@
 ``XgvClient`` turns the stack's actuator commands into JAUS commands and the XGV's reports into
 the stack's sensor messages. It never touches a socket or a clock: ``receive(datagram, now_s)``
 takes what arrived, ``sensor_outputs(now_s)`` gives the bus messages to publish, and
-``command_datagrams(now_s)`` the datagrams to send (``overdrive.xgv_link`` does the I/O).
+``command_datagrams(now_s)`` the datagrams to send (``overdrive.run.drive`` does the I/O).
 
 Sequence (reference §7): Query Heartbeat Pulse until the XGV answers; then Create Service
 Connection for Report Vehicle Mode (Node Manager) and the vehicle's reports (Primitive Driver),
@@ -42,7 +42,8 @@ from typing import Any, Final, Literal
 
 import msgspec
 
-from overdrive.control import first_order_lag
+from overdrive.dynamics.control import first_order_lag
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.jaus import (
     DEFAULT_CLIENT_ID,
     ComponentStatus,
@@ -117,7 +118,6 @@ from overdrive.vehicle.plain_jaus import (
     SpeedCheck,
     safety_mode_from_status,
 )
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
 from overdrive.vehicle.xgv import gear_codes, gear_from_code
 
 ESTOP_DECEL_MPS2: Final = 9.0        # speed server e-stopped: stop at the strongest preset brake

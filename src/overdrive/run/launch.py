@@ -51,10 +51,16 @@ from overdrive.bus.access import (
 )
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
-from overdrive.run_files import finite_json
-from overdrive.runtime import DEFAULT_PERIOD_S, Node
-from overdrive.runtime_wall import WallRuntime
-from overdrive.scenario import Scenario, ScenarioError, parse_scenario
+from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.observe.judge import DELIVERED_TOPICS
+from overdrive.observe.recorder import Recorder
+from overdrive.observe.run_files import finite_json
+from overdrive.run.compose import build_nodes
+from overdrive.run.sim import add_judgement, make_monitor, make_summary
+from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, Node
+from overdrive.runtime.wall import WallRuntime
+from overdrive.scenario.player import ScenarioPlayer, channel_faults, world_from_spec
+from overdrive.scenario.schema import Scenario, ScenarioError, parse_scenario
 from overdrive.vehicle.plant import ActuatorFaults, World
 from overdrive.vehicle.sim_node import (
     COMMAND_TIMEOUT_S,
@@ -189,8 +195,6 @@ def free_port() -> int:
 
 def preset_scenario(cli_name: str, preset: str, start: str = "parked") -> Scenario:
     """A stand-in scenario for running one node without a scenario file."""
-    from overdrive.vehicle.presets import PRESETS
-
     event = json.loads(json.dumps(_PULL_IN[cli_name]))
     if "set_speed" in event:
         event["set_speed"]["gear"] = PRESETS[preset].park_gear if preset in PRESETS else "park"
@@ -200,8 +204,6 @@ def preset_scenario(cli_name: str, preset: str, start: str = "parked") -> Scenar
 
 def scenario_node_names(scenario: Scenario) -> list[str]:
     """The CLI names of the server processes ``scenario`` needs, in mesh order."""
-    from overdrive.sim import build_nodes
-
     built = {n.name for n in build_nodes(scenario)}
     return [cli for cli in MESH_ORDER if NODE_CLASSES[cli] in built]
 
@@ -213,8 +215,6 @@ def build_node(cli_name: str, scenario: Scenario) -> Node:
     if cli_name not in NODE_CLASSES:
         raise ScenarioError(scenario.source, "node", f"unknown node {cli_name!r}; one of "
                             + ", ".join([*NODE_CLASSES, *UNAVAILABLE]))
-    from overdrive.sim import build_nodes
-
     wanted = NODE_CLASSES[cli_name]
     for node in build_nodes(scenario):
         if node.name == wanted:
@@ -226,8 +226,6 @@ def build_node(cli_name: str, scenario: Scenario) -> Node:
 # --------------------------------------------------------------------------- one node process
 
 def _channel_faults(scenario: Scenario) -> Any:
-    from overdrive.player import channel_faults
-
     return channel_faults(scenario)
 
 
@@ -527,7 +525,7 @@ class Launch:
 
     def _spawn(self, proc: NodeProcess) -> None:
         assert self._scenario_path is not None
-        cmd = [self.python, "-m", "overdrive.bus_cli", "node", proc.cli_name,
+        cmd = [self.python, "-m", "overdrive.cli.bus", "node", proc.cli_name,
                "--scenario", str(self._scenario_path), "--listen", proc.listen,
                "--vehicle", self.vehicle, "--wait-clock", "--report", str(proc.report)]
         for endpoint in proc.connect:
@@ -567,7 +565,7 @@ class Launch:
         """Start the tool gate: the run's public endpoint for pub/echo (``bus.tool_gate``)."""
         assert self.access is not None
         self._gate_ready.unlink(missing_ok=True)
-        cmd = [self.python, "-m", "overdrive.bus_cli", "gate", "--public", self.listen,
+        cmd = [self.python, "-m", "overdrive.cli.bus", "gate", "--public", self.listen,
                "--listen", self.gate_listen, "--vehicle", self.vehicle,
                "--access", str(self.access.folder),
                "--report", str(self.work_dir / "nodes" / "gate.json"),
@@ -735,11 +733,6 @@ class Launch:
 
     def run(self, on_tick: Callable[[float], None] | None = None) -> LaunchResult:
         """Play the scenario in wall-clock time, stop the nodes, write the run folder."""
-        from overdrive.player import ScenarioPlayer, world_from_spec
-        from overdrive.recorder import Recorder
-        from overdrive.safety.monitor import DELIVERED_TOPICS
-        from overdrive.sim import add_judgement, make_monitor, make_summary
-
         assert self.bus is not None, "call start() first"
         scenario, spec = self.scenario, self.scenario.spec
         faults = _channel_faults(scenario)
@@ -817,7 +810,7 @@ class Launch:
         if out_path is not None:
             (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
             if self.plot:
-                from overdrive.plot import plot_run
+                from overdrive.observe.plot import plot_run
 
                 plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
         return LaunchResult(summary, exit_code, out_path, reports)

@@ -2,7 +2,7 @@
 
 ``LiveView`` starts a ``foxglove-sdk`` WebSocket server (loopback only, port 8765 by default)
 with its own context, and publishes every bus message on a channel named by its topic, with
-the same JSON Schemas and encoding as ``run.mcap`` (``overdrive.mcap_log``), plus the vehicle's
+the same JSON Schemas and encoding as ``run.mcap`` (``overdrive.observe.mcap_log``), plus the vehicle's
 pose (``viz/pose``, ``viz/tf``) for the 3D panel. Open Foxglove, "Open connection", Foxglove
 WebSocket, ``ws://localhost:8765``.
 
@@ -18,7 +18,8 @@ from typing import Any
 
 import msgspec
 
-from overdrive.mcap_log import (
+from overdrive.messages import Topic
+from overdrive.observe.mcap_log import (
     FRAME_TRANSFORM_SCHEMA,
     POSE_IN_FRAME_SCHEMA,
     POSE_TOPIC,
@@ -26,7 +27,6 @@ from overdrive.mcap_log import (
     json_schema,
     pose_messages,
 )
-from overdrive.messages import Topic
 
 DEFAULT_PORT = 8765          # the port the Foxglove app proposes for a Foxglove WebSocket
 NS_PER_S = 1_000_000_000

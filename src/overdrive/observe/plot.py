@@ -18,6 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from overdrive.messages import Topic
+from overdrive.observe.recorder import TRACE_COLUMNS, Recorder
+from overdrive.scenario.schema import ScenarioError, load_scenario
+
 SPEED_STATE_COLOURS = {
     "parked": "#8c8c8c", "reset": "#b07aa1", "starting": "#edc948", "startwait": "#ff9da7",
     "paused": "#f28e2b", "runwait": "#76b7b2", "idle": "#4e79a7", "shifting": "#9c755f",
@@ -74,8 +78,6 @@ def _scenario_world(source: str | None) -> tuple[list[tuple[float, float]], str 
     if not source:
         return [], None
     try:
-        from overdrive.scenario import ScenarioError, load_scenario
-
         scenario = load_scenario(source)
     except (ScenarioError, OSError, ImportError):
         return [], None
@@ -100,10 +102,7 @@ def load_mcap(path: str | Path) -> RunData:
     """Columns of a ``run.mcap``: the trace's, plus the driving module's limits per period."""
     import yaml
 
-    from overdrive.mcap_log import decode_lenient, iter_ticks, read_info, resolve_type
-    from overdrive.messages import Topic
-    from overdrive.recorder import TRACE_COLUMNS, Recorder
-
+    from overdrive.observe.mcap_log import decode_lenient, iter_ticks, read_info, resolve_type
     path = Path(path)
     info = read_info(path)
     obstacles: list[tuple[float, float]] = []

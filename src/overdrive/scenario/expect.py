@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from overdrive.scenario import ExpectSpec, Window
+from overdrive.scenario.schema import ExpectSpec, Window
 
 
 def _matches(event: dict[str, Any], window: Window) -> bool:

@@ -1,6 +1,6 @@
 """Observability commands: ``overdrive replay`` and ``overdrive plot``, and the ``--live`` hook.
 
-Registered in ``overdrive.cli`` with ``main.add_command``. Exit codes follow the contract:
+Registered in ``overdrive.cli.main`` with ``main.add_command``. Exit codes follow the contract:
 0 ran and held (replay: no difference), 1 ran and something differed, 2 bad usage or an
 invalid file, with a one-line message naming the file.
 """
@@ -12,6 +12,9 @@ from pathlib import Path
 from typing import Any
 
 import click
+
+from overdrive.observe.run_files import OutDirError, make_out_dir
+from overdrive.scenario.schema import ScenarioError
 
 EXIT_OK, EXIT_DIFFERENT, EXIT_USAGE = 0, 1, 2
 
@@ -34,10 +37,8 @@ def replay(recording: Path, as_json: bool) -> None:
 
     Exit 0 when every decision matches, 1 when one differs, 2 when the file cannot be replayed.
     """
-    from overdrive.replay import ReplayError
-    from overdrive.replay import replay as run_replay
-    from overdrive.scenario import ScenarioError
-
+    from overdrive.run.replay import ReplayError
+    from overdrive.run.replay import replay as run_replay
     path = recording / "run.mcap" if recording.is_dir() else recording
     if not path.is_file():
         _fail(f"{path}: no such file")
@@ -61,9 +62,7 @@ def plot(run: Path, out_png: Path | None) -> None:
     """Plot RUN (a run folder, its run.mcap or its trace.csv): speed and goal speed,
     acceleration against the ellipse limits, pedals, speed states, safety modes and gears,
     and the path with obstacles and authorizations."""
-    from overdrive.plot import plot_source
-    from overdrive.run_files import OutDirError, make_out_dir
-
+    from overdrive.observe.plot import plot_source
     try:
         if out_png is not None:
             make_out_dir(out_png.parent, f"--out {out_png}: its folder")
@@ -87,7 +86,7 @@ def plot(run: Path, out_png: Path | None) -> None:
 def start_live(port: int, host: str = "127.0.0.1") -> Any:
     """The ``--live`` hook: a started ``LiveView`` (close it after the run); exit 2 when it
     cannot start (foxglove-sdk missing, port taken)."""
-    from overdrive.live import LiveView, LiveViewError
+    from overdrive.observe.live import LiveView, LiveViewError
 
     try:
         view = LiveView(host=host, port=port)
@@ -100,6 +99,6 @@ def start_live(port: int, host: str = "127.0.0.1") -> Any:
 
 
 COMMANDS = (replay, plot)
-"""What ``overdrive.cli`` registers: ``for c in COMMANDS: main.add_command(c)``."""
+"""What ``overdrive.cli.main`` registers: ``for c in COMMANDS: main.add_command(c)``."""
 
 __all__ = ["COMMANDS", "plot", "replay", "start_live"]

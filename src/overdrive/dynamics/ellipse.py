@@ -30,7 +30,7 @@ import math
 
 import msgspec
 
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 
 _TINY_SPAN = 1e-6   # |s1 - s0| below which a curve is integrated as a straight line (error ~1e-12)
 _SERIES_X = 1e-4    # |x| below which atan(x)/x and atanh(x)/x use their two-term series

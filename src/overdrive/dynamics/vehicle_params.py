@@ -14,6 +14,8 @@ from typing import Any
 import msgspec
 
 G_MPS2 = 9.80665  # standard gravity
+AIR_DENSITY_KGPM3 = 1.225  # ISA sea level: the drag model of the plant, the loops and the judge
+DRY_MU = 0.9  # friction the preset's braking and skid-pad figures were measured on
 
 
 class Gear(msgspec.Struct, frozen=True, forbid_unknown_fields=True):

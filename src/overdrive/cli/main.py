@@ -14,6 +14,19 @@ import click
 import msgspec
 
 from overdrive import __version__
+from overdrive.cli.bus import echo, launch, node, pub
+from overdrive.cli.jaus import jaus
+from overdrive.cli.observe import COMMANDS, start_live
+from overdrive.cli.summary import print_summary
+from overdrive.observe.run_files import OutDirError, make_out_dir
+from overdrive.run.compose import plain_profile_problem
+from overdrive.run.drive import run_drive
+from overdrive.run.move_sim import simulation_nodes
+from overdrive.run.sim import default_out_dir, run_scenario
+from overdrive.run.sweep import default_jobs, sweep
+from overdrive.run.xgv_sim import XgvServer
+from overdrive.scenario.schema import ScenarioError, load_scenario, parse_scenario
+from overdrive.vehicle.plant import World
 
 EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
 
@@ -44,14 +57,8 @@ def main() -> None:
 def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, quiet: bool,
         live: bool, live_port: int) -> None:
     """Run SCENARIO against the simulated vehicle and write the run folder."""
-    from overdrive.run_files import OutDirError, make_out_dir
-    from overdrive.scenario import ScenarioError, load_scenario
-    from overdrive.sim import default_out_dir, run_scenario
-
     observers = []
     if live:
-        from overdrive.obs_cli import start_live
-
         observers.append(start_live(live_port))
     try:
         loaded = load_scenario(scenario)
@@ -99,10 +106,6 @@ def sweep_command(scenario: Path, runs: int, jobs: int | None, out_dir: Path | N
     """Monte Carlo validation: run SCENARIO N times with sampled conditions; exit 1 on any
     safety-invariant violation."""
     import time
-
-    from overdrive.run_files import OutDirError
-    from overdrive.scenario import ScenarioError
-    from overdrive.sweep import default_jobs, sweep
 
     out = out_dir or Path("runs") / f"sweep-{scenario.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
@@ -154,12 +157,6 @@ def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_
     """Run the move server. With -s: offline, against the simulated vehicle and a fake planner."""
     if not simulate:
         fail_usage("move-server runs offline with -s; on a vehicle run `overdrive node move`")
-    from overdrive.move_sim import simulation_nodes
-    from overdrive.run_files import OutDirError, make_out_dir
-    from overdrive.scenario import parse_scenario
-    from overdrive.sim import default_out_dir, run_scenario
-    from overdrive.vehicle.plant import World
-
     scenario = parse_scenario({"name": f"move-server-sim-{vehicle}", "vehicle": vehicle,
                                "seed": seed, "duration_s": duration_s,
                                "description": "overdrive move-server -s"}, "<move-server -s>")
@@ -197,9 +194,6 @@ def _host_port(text: str, default_port: int, what: str) -> tuple[str, int]:
               help="Stop after this long (default: run until interrupted).")
 def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | None) -> None:
     """A simulated ByWire XGV speaking JAUS 3.3 over JUDP/UDP, in wall-clock time."""
-    from overdrive.scenario import ScenarioError, load_scenario
-    from overdrive.xgv_sim import XgvServer
-
     loaded = None
     if scenario is not None:
         try:
@@ -236,11 +230,6 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
 def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool,
           profile: str) -> None:
     """Run the control stack against a real or simulated XGV over JAUS, in wall-clock time."""
-    from overdrive.run_files import OutDirError, make_out_dir
-    from overdrive.scenario import ScenarioError, load_scenario
-    from overdrive.sim import default_out_dir
-    from overdrive.xgv_link import plain_profile_problem, run_drive
-
     remote = _host_port(xgv, 3794, "--xgv")
     local = _host_port(bind, 0, "--bind")
     try:
@@ -276,42 +265,8 @@ def bench() -> None:
     runpy.run_path(str(script), run_name="__main__")
 
 
-def print_summary(summary: dict, out: Path) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console()
-    final, peaks = summary["final"], summary["peaks"]
-    table = Table(title=f"overdrive sim: {summary['name']}", show_header=False)
-    table.add_column(style="bold")
-    table.add_column()
-    rows = [
-        ("vehicle", summary["vehicle"]["preset"]),
-        ("simulated", f"{summary['sim_time_s']:.1f} s in {summary['wall_time_s']:.2f} s "
-                      f"({summary['real_time_factor']}x real time)"),
-        ("odometer", f"{summary['odometer_m']:.2f} m"),
-        ("final position", f"x {final['x_m']:.2f} m, y {final['y_m']:.2f} m, "
-                           f"heading {final['heading_rad']:.3f} rad"),
-        ("final speed", f"{final['speed_mps']:.3f} m/s, gear {final['gear']}"),
-        ("final states", f"speed server {final['speed_state']}, safety {final['safety_mode']}"),
-        ("peaks", f"speed {peaks['max_speed_mps']:.2f} m/s, accel {peaks['max_accel_mps2']:.2f}, "
-                  f"decel {peaks['max_decel_mps2']:.2f}, lateral "
-                  f"{peaks['max_lateral_accel_mps2']:.2f} m/s^2"),
-        ("events", str(len(summary["events"]))),
-        ("violations", "none" if not summary["violations"] else "\n".join(summary["violations"])),
-    ]
-    for key, value in rows:
-        table.add_row(key, value)
-    console.print(table)
-    click.echo(f"results: {out}")
-
-
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
-    from overdrive.bus_cli import echo, launch, node, pub
-    from overdrive.jaus.cli import jaus
-    from overdrive.obs_cli import COMMANDS
-
     for command in (*COMMANDS, jaus, node, launch, pub, echo):
         main.add_command(command)
 

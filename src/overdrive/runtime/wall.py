@@ -41,7 +41,7 @@ from typing import Any
 from overdrive.bus.delivery import trigger_topics
 from overdrive.bus.local import Stamped
 from overdrive.messages import Notice, Topic
-from overdrive.runtime import Node
+from overdrive.runtime.lockstep import Node
 
 LAG_WINDOW_STEPS = 100     # 1 s at 100 Hz: long enough to average scheduler jitter out
 LAG_THRESHOLD = 0.02       # issue 8: report when the mean period is more than 2 % slow

@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from overdrive.safe_yaml import one_line
+from overdrive.scenario.safe_yaml import one_line
 
 
 class OutDirError(ValueError):

@@ -1,7 +1,7 @@
 """Replaying a recorded run through the control stack: a regression check for control code.
 
 ``overdrive replay run.mcap`` rebuilds the servers the run used (move server, driving module,
-speed server: whichever ``overdrive.sim.build_nodes`` makes for the recorded scenario, so with
+speed server: whichever ``overdrive.run.sim.build_nodes`` makes for the recorded scenario, so with
 the same vehicle parameters), replaces the vehicle and the scenario player by playback of the
 messages they published, steps everything on the lock-step runtime in the recorded tick order
 (with the scenario's channel faults, drop/delay/duplicate/reorder, re-applied on the bus), and compares each server's
@@ -28,9 +28,12 @@ from typing import Any
 import msgspec
 
 from overdrive.bus.local import LocalBus
-from overdrive.mcap_log import RunInfo, decode_lenient, iter_ticks, read_info, resolve_type
 from overdrive.messages import Topic
-from overdrive.runtime import LockstepRuntime
+from overdrive.observe.mcap_log import RunInfo, decode_lenient, iter_ticks, read_info, resolve_type
+from overdrive.run.compose import build_nodes
+from overdrive.runtime.lockstep import LockstepRuntime
+from overdrive.scenario.player import channel_faults
+from overdrive.scenario.schema import load_scenario_text
 
 PLAYED_BACK = ("vehicle", "scenario")
 """Nodes played back when the recording does not list its nodes; otherwise every recorded node
@@ -191,8 +194,6 @@ def infer_publisher(topic: str, msg: dict[str, Any], servers: Sequence[str]) -> 
 # --------------------------------------------------------------------------- replay
 
 def _scenario(info: RunInfo, path: Path) -> Any:
-    from overdrive.scenario import load_scenario_text
-
     if info.scenario_yaml is None:
         raise ReplayError(f"{path}: no scenario.yaml attachment; cannot rebuild the stack")
     return load_scenario_text(info.scenario_yaml, f"{path}:scenario.yaml")
@@ -200,8 +201,6 @@ def _scenario(info: RunInfo, path: Path) -> Any:
 
 def build_servers(scenario: Any) -> list[Any]:
     """The server nodes ``overdrive sim`` builds for ``scenario``, in tick order."""
-    from overdrive.sim import build_nodes
-
     return [n for n in build_nodes(scenario) if n.name not in PLAYED_BACK]
 
 
@@ -226,8 +225,6 @@ def replay(path: str | Path, *,
     ``servers_factory(scenario)`` builds the server nodes (default ``build_servers``): tests use
     it to change a gain.
     """
-    from overdrive.player import channel_faults
-
     path = Path(path)
     info = read_info(path)
     scenario = _scenario(info, path)

@@ -15,7 +15,8 @@ from typing import Annotated, Any, Literal
 
 import msgspec
 
-from overdrive.safe_yaml import (
+from overdrive.dynamics.vehicle_params import VehicleParams, VehicleSpecError, vehicle_from_spec
+from overdrive.scenario.safe_yaml import (
     MAX_DEPTH,
     MAX_JSON_BYTES,
     MAX_NODES,
@@ -25,7 +26,6 @@ from overdrive.safe_yaml import (
     one_line,
     read_text,
 )
-from overdrive.vehicle.presets import VehicleParams, VehicleSpecError, vehicle_from_spec
 
 # Bounds: generous physical limits, chosen to catch typos and unit mistakes, not to restrict use.
 Time = Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)]          # within a day

@@ -26,10 +26,9 @@ import math
 
 import msgspec
 
-from overdrive.control import Pid, PidGains, clamp, first_order_lag
-from overdrive.vehicle.presets import G_MPS2, Gear, VehicleParams
+from overdrive.dynamics.control import Pid, PidGains, clamp, first_order_lag
+from overdrive.dynamics.vehicle_params import AIR_DENSITY_KGPM3, G_MPS2, Gear, VehicleParams
 
-AIR_DENSITY_KGPM3 = 1.225          # ISA sea level, as the drag model assumes
 MIN_AUTHORITY_SPEED_MPS = 0.5      # power-limited force is evaluated at no less than this
 REDLINE_TAPER_FRACTION = 0.9       # drive force fades over the last 10 % below the gear's top speed
 ROLLBACK_MPS = 0.1                 # rolling back faster than this while holding: full brake

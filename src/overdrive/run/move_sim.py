@@ -1,18 +1,18 @@
 """Simulation mode of the move server (seed 004 "-s"): the nodes for ``overdrive move-server -s``.
 
 The fake planner (``servers.move_planner.FakePlanner``) drives the whole stack against the
-simulated vehicle. This module composes nodes, like ``overdrive.sim``; servers never import it.
+simulated vehicle. This module composes nodes, like ``overdrive.run.sim``; servers never import it.
 """
 
 from __future__ import annotations
 
-from overdrive.runtime import Node
+from overdrive.dynamics.vehicle_params import VehicleParams
+from overdrive.runtime.lockstep import Node
 from overdrive.servers.driving import DrivingModule
 from overdrive.servers.move import MoveServer, MoveServerConfig
 from overdrive.servers.move_planner import FakePlanner, PlannerConfig
 from overdrive.servers.speed import SpeedServer
 from overdrive.vehicle.plant import World
-from overdrive.vehicle.presets import VehicleParams
 from overdrive.vehicle.sim_node import VehicleSim
 
 

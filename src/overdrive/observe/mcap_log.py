@@ -1,6 +1,6 @@
 """Recording a run as MCAP (``run.mcap``): every bus message, ground truth, and a Foxglove pose.
 
-``McapRecorder`` is a bus tap, like ``overdrive.recorder.Recorder``: it never feeds anything
+``McapRecorder`` is a bus tap, like ``overdrive.observe.recorder.Recorder``: it never feeds anything
 back into the stack. Every bus message is written as JSON on a channel named by its topic, with
 the message type's JSON Schema (``msgspec.json.schema``; schema encoding ``jsonschema``, message
 encoding ``json``). JSON has no NaN or infinity: non-finite floats (``authorized_m`` when there
@@ -311,13 +311,13 @@ class McapRecorder:
     messages carry the vehicle pose (``x_m``, ``y_m``, ``heading_rad``, ``pitch_rad``,
     ``roll_rad``) for the Foxglove pose and transform; None disables them.
 
-    The file is written by ``overdrive.mcap_writer.McapWriter`` (the ``mcap`` package reads it).
+    The file is written by ``overdrive.observe.mcap_writer.McapWriter`` (the ``mcap`` package reads it).
     """
 
     def __init__(self, output: str | Path | IO[bytes], *, scenario: Any = None,
                  period_s: float = 0.01, metadata: dict[str, str] | None = None,
                  pose_topic: str | None = Topic.TRUTH, chunk_size: int = 1 << 20) -> None:
-        from overdrive.mcap_writer import McapWriter
+        from overdrive.observe.mcap_writer import McapWriter
 
         self._own = isinstance(output, (str, Path))
         self._stream: IO[bytes] = open(output, "wb") if self._own else output  # type: ignore[arg-type]  # noqa: SIM115

@@ -13,7 +13,7 @@ from typing import Any
 
 import msgspec
 
-from overdrive.faults import ChannelFaults
+from overdrive.bus.faults import ChannelFaults
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -26,7 +26,7 @@ from overdrive.messages import (
     SteeringRequest,
     Topic,
 )
-from overdrive.scenario import EventSpec, Scenario
+from overdrive.scenario.schema import EventSpec, Scenario
 from overdrive.vehicle.plant import ActuatorFaults, World
 from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC, EngineStall, SensorFault
 

@@ -55,11 +55,15 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from overdrive.dynamics.vehicle_params import AIR_DENSITY_KGPM3, DRY_MU, G_MPS2, VehicleParams
 from overdrive.messages import Topic
 from overdrive.vehicle.modes import safety_mode
-from overdrive.vehicle.plant import AIR_DENSITY_KGPM3, DRY_MU
-from overdrive.vehicle.presets import G_MPS2, VehicleParams
 from overdrive.vehicle.sim_node import WORLD_TOPIC
+
+RULES = ("authorization", "direction", "speed", "unintended_motion", "watchdog", "finite",
+         "throttle_while_braking", "control", "acceleration_ellipse", "estop_precedence", "contact")
+"""The judge's rules, in the order of the module docstring."""
+
 
 WATCHDOG_S = 0.200            # seed 001: "Failure to send one for 200ms will result in an emergency stop"
 ESTOP_BRAKE_PCT = 99.0        # what counts as "brakes full on"

@@ -8,7 +8,6 @@ real-time factor), and writes ``summary.json``, ``trace.csv`` and ``plot.png``.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -16,29 +15,18 @@ from pathlib import Path
 from typing import Any
 
 from overdrive.bus.local import LocalBus
-from overdrive.expect import check
 from overdrive.messages import Topic
-from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
-from overdrive.provenance import run_provenance
-from overdrive.recorder import Recorder
-from overdrive.run_files import finite_json
-from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
-from overdrive.safety.monitor import DELIVERED_TOPICS, Monitor
-from overdrive.scenario import (
-    DRIVING_KINDS,
-    MOVE_KINDS,
-    OPEN_LOOP_KINDS,
-    SPEED_KINDS,
+from overdrive.observe.judge import DELIVERED_TOPICS, Monitor
+from overdrive.observe.provenance import run_provenance
+from overdrive.observe.recorder import Recorder
+from overdrive.observe.run_files import finite_json
+from overdrive.run.compose import build_nodes
+from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, LockstepRuntime, Node
+from overdrive.scenario.expect import check
+from overdrive.scenario.player import channel_faults
+from overdrive.scenario.schema import (
     Scenario,
-    ScenarioError,
 )
-from overdrive.vehicle.sim_node import VehicleSim
-
-SERVER_MODULES = {
-    "speed": ("overdrive.servers.speed", "SpeedServer", "the speed server (set_speed)"),
-    "driving": ("overdrive.servers.driving", "DrivingModule", "the driving module"),
-    "move": ("overdrive.servers.move", "MoveServer", "the move server"),
-}
 
 
 @dataclass
@@ -48,57 +36,6 @@ class RunResult:
     out_dir: Path | None = None
     trace: list[dict[str, str]] | None = None
     nodes: dict[str, Node] = field(default_factory=dict)
-
-
-def _server(key: str, scenario: Scenario, kind_hint: str) -> type:
-    module_name, class_name, what = SERVER_MODULES[key]
-    try:
-        module = importlib.import_module(module_name)
-        return getattr(module, class_name)
-    except (ImportError, AttributeError):
-        index = next((i for i, e in enumerate(scenario.spec.events) if e.kind == kind_hint), 0)
-        raise ScenarioError(scenario.source, f"events[{index}].{kind_hint}",
-                            f"not supported yet: {what} is not part of this build") from None
-
-
-def build_nodes(scenario: Scenario) -> list[Node]:
-    """The nodes a scenario needs, in tick order (vehicle first). Raises ScenarioError."""
-    spec = scenario.spec
-    kinds = scenario.event_kinds
-    closed_loop = kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS)
-    if kinds & OPEN_LOOP_KINDS and closed_loop:
-        raise ScenarioError(scenario.source, "events",
-                            "open-loop events (actuators, gear, engine) cannot be mixed with "
-                            f"server events ({', '.join(sorted(closed_loop))})")
-    if kinds & SPEED_KINDS and kinds & (DRIVING_KINDS | MOVE_KINDS):
-        raise ScenarioError(scenario.source, "events",
-                            "set_speed makes the scenario the speed server's client; it cannot be "
-                            "mixed with move/advance/max_speed/steer, whose client is the driving module")
-    params = scenario.vehicle
-    ready = spec.start == "ready"
-    nodes: list[Node] = [VehicleSim(params, world_from_spec(spec.world), spec.seed, ready=ready),
-                         ScenarioPlayer(scenario)]
-    if kinds & MOVE_KINDS:
-        hint = next(k for k in ("move", "reverse", "stop") if k in kinds)
-        move_cls = _server("move", scenario, hint)
-        from overdrive.servers.move import MoveServerConfig
-
-        nodes.append(move_cls(params, config=MoveServerConfig(friction=spec.world.friction)))
-    if kinds & (DRIVING_KINDS | MOVE_KINDS):
-        hint = next(k for k in ("move", "reverse", "stop", "advance", "max_speed", "steer") if k in kinds)
-        nodes.append(_server("driving", scenario, hint)(params, friction=spec.world.friction))
-    if kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS):
-        hint = "set_speed" if "set_speed" in kinds else next(iter(sorted(closed_loop)))
-        speed_cls = _server("speed", scenario, hint)
-        nodes.append(speed_cls(params, initial_state="run" if ready else "parked",
-                               initial_gear=params.drive_gear if ready else None))
-    if spec.interface == "jaus" or spec.control == "motion-profile":
-        # the simulated XGV and the stack's JAUS client stand where VehicleSim stands (actuator
-        # monitoring is off over JAUS: xgv_link.without_actuator_monitoring)
-        from overdrive.xgv_link import lockstep_nodes
-
-        return lockstep_nodes(scenario, nodes[1:])
-    return nodes
 
 
 def default_out_dir(scenario: Scenario) -> Path:
@@ -133,7 +70,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         taps = list(observers)
         mcap = None
         if out_path is not None and record_mcap:
-            from overdrive.mcap_log import McapRecorder
+            from overdrive.observe.mcap_log import McapRecorder
 
             mcap = stack.enter_context(
                 McapRecorder(out_path / "run.mcap", scenario=scenario, period_s=period_s))
@@ -174,7 +111,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     if out_path is not None:
         (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
         if plot:
-            from overdrive.plot import plot_run
+            from overdrive.observe.plot import plot_run
             plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
     return RunResult(summary=summary, exit_code=exit_code, out_dir=out_path,
                      trace=recorder.rows, nodes={n.name: n for n in nodes})

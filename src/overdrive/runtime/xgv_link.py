@@ -1,4 +1,4 @@
-"""The XGV over JAUS/UDP in a run: datagram links and the nodes at the runtime edge.
+"""The XGV over JAUS/UDP: datagram links and the nodes at the runtime edge.
 
 The XGV logic is sans-IO (``vehicle.xgv.XgvSimulator``, ``vehicle.xgv_client.XgvClient``);
 this module carries their datagrams and puts them on the bus:
@@ -29,14 +29,11 @@ import socket
 from collections.abc import Sequence
 from typing import Any, Final, Literal
 
-from overdrive.faults import ChannelFaults, Window
+from overdrive.bus.faults import ChannelFaults, Window
 from overdrive.messages import Topic
-from overdrive.player import world_from_spec
-from overdrive.scenario import Scenario
-from overdrive.vehicle.plain_jaus import JausProfile
 from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
-from overdrive.vehicle.xgv import POSITION_RMS_M, XgvSimulator
-from overdrive.vehicle.xgv_client import XgvClient, XgvClientConfig
+from overdrive.vehicle.xgv import XgvSimulator
+from overdrive.vehicle.xgv_client import XgvClient
 
 Address = tuple[str, int]
 LOOPBACK: Final = "127.0.0.1"
@@ -229,7 +226,7 @@ class XgvSimNode:
         self.link.close()
 
 
-class _ClientPort:
+class ClientPort:
     """What the client nodes need from a link: receive and send the client's datagrams."""
 
     def __init__(self, link: LoopbackLink | UdpPort) -> None:
@@ -257,7 +254,7 @@ class XgvSensorNode:
     period_s = 0.01
     subscriptions: tuple[str, ...] = ()
 
-    def __init__(self, client: XgvClient, port: _ClientPort) -> None:
+    def __init__(self, client: XgvClient, port: ClientPort) -> None:
         self.client = client
         self.port = port
 
@@ -278,7 +275,7 @@ class XgvCommandNode:
     subscriptions = (Topic.PEDALS, Topic.STEER, Topic.POWERTRAIN, Topic.SET_SPEED,
                      Topic.SPEED_STATE)
 
-    def __init__(self, client: XgvClient, port: _ClientPort) -> None:
+    def __init__(self, client: XgvClient, port: ClientPort) -> None:
         self.client = client
         self.port = port
         self.last_now_s = 0.0
@@ -298,98 +295,4 @@ class XgvCommandNode:
         self.port.close()
 
 
-# --------------------------------------------------------------------------- compositions
-
-def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
-    """The scenario's faults on channel ``jaus``: (kind, start, duration, delay)."""
-    found = []
-    for event in scenario.events:
-        body = event.body
-        if event.kind in ("drop", "delay", "duplicate", "reorder") and body.channel == "jaus":
-            found.append((event.kind, event.at_s, body.for_s, getattr(body, "delay_s", 0.0)))
-    return found
-
-
-def without_actuator_monitoring(servers: Sequence[Any]) -> None:
-    """JAUS 3.3 reports the wrench *efforts* (and under motion profile the XGV's own loops set
-    them), not actuator positions: the servers' actuator monitoring (issue 16) has nothing to
-    compare its commands with over JAUS, so it is switched off (a residual hazard: H11, H14).
-    Nor does an XGV have the collision radar: the move server's radar health check (issue 16)
-    would hold a vehicle that has none, so it is told none is fitted (H22: over JAUS the planner
-    owns the clearance ahead)."""
-    for node in servers:
-        if hasattr(node, "monitor_actuators"):
-            node.monitor_actuators = False
-        corridor = getattr(node, "corridor", None)
-        if corridor is not None:
-            corridor.fitted = False
-
-
-def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
-                   profile: JausProfile = "xgv") -> list[Any]:
-    """The XGV, the client and ``servers`` (player first) for a lock-step run of ``scenario``
-    (``profile="plain"``: the client reads the simulated XGV as a plain JAUS vehicle)."""
-    spec = scenario.spec
-    transport: Literal["udp", "memory"] = "udp" if spec.interface == "jaus" else "memory"
-    link = LoopbackLink(transport, jaus_faults(scenario))
-    simulator = XgvSimulator(scenario.vehicle, world_from_spec(spec.world), spec.seed,
-                             ready=spec.start == "ready")
-    control = "motion-profile" if spec.control == "motion-profile" else "wrench"
-    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, profile=profile))
-    port = _ClientPort(link)
-    without_actuator_monitoring(servers)
-    return [XgvSimNode(simulator, link), XgvSensorNode(client, port), *servers,
-            XgvCommandNode(client, port)]
-
-
-REPORTED_POSE_BOUND_M = 6.0 * POSITION_RMS_M
-"""No simulator truth in ``overdrive drive``: the judge takes the XGV's reported pose, whose error
-stays within six standard deviations of its reported accuracy over a run's samples."""
-
-
-def drive_nodes(scenario: Scenario, servers: Sequence[Any], remote: Address,
-                bind: Address = ("0.0.0.0", 0), profile: JausProfile = "xgv") -> list[Any]:
-    """The client and ``servers`` for a wall-clock run against the vehicle at ``remote``
-    (``profile``: an XGV, or a plain JAUS 3.3 vehicle, ``vehicle.plain_jaus``)."""
-    control = "motion-profile" if scenario.spec.control == "motion-profile" else "wrench"
-    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, publish_truth=True,
-                                                         accel_filter_s=0.05, profile=profile))
-    port = _ClientPort(UdpPort(remote, bind))
-    without_actuator_monitoring(servers)
-    return [XgvSensorNode(client, port), *servers, XgvCommandNode(client, port)]
-
-
-def plain_profile_problem(scenario: Scenario) -> str | None:
-    """Why ``scenario`` cannot drive a plain JAUS vehicle (None: it can). Such a vehicle has
-    no Motion Profile Driver and reports no engine or gear (``vehicle.plain_jaus``)."""
-    if scenario.spec.control != "wrench":
-        return "control: a plain JAUS vehicle has no Motion Profile Driver; use control: wrench"
-    if scenario.spec.start != "ready":
-        return ("start: a plain JAUS vehicle reports no engine or gear, so the stack cannot "
-                "start or shift it; use start: ready (engine running, in drive)")
-    return None
-
-
-def run_drive(scenario: Scenario, remote: Address, out_dir: Any = None, *,
-              bind: Address = ("0.0.0.0", 0), plot: bool = True, keep_trace: bool = False,
-              profile: JausProfile = "xgv") -> Any:
-    """``overdrive drive``: the stack against the XGV at ``remote``, in wall-clock time.
-
-    The servers are those ``overdrive sim`` builds for the scenario; the run folder is the
-    same, its trace and final state taken from the XGV's reports. Safety-device and world
-    events are physical: the XGV (or ``overdrive xgv-sim --scenario``) plays them, not the stack.
-    """
-    import msgspec
-
-    from overdrive.sim import build_nodes, run_scenario
-
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    servers = build_nodes(embedded)[1:]
-    return run_scenario(scenario, out_dir, realtime=True, plot=plot, keep_trace=keep_trace,
-                        nodes=drive_nodes(scenario, servers, remote, bind, profile),
-                        position_noise_m=REPORTED_POSE_BOUND_M)
-
-
-__all__ = ["LoopbackLink", "UdpPort", "XgvCommandNode", "XgvSensorNode", "XgvSimNode",
-           "drive_nodes", "jaus_faults", "lockstep_nodes", "plain_profile_problem", "run_drive"]
+__all__ = ["ClientPort", "LoopbackLink", "UdpPort", "XgvCommandNode", "XgvSensorNode", "XgvSimNode"]

@@ -1,7 +1,7 @@
 """``overdrive node``, ``launch``, ``pub`` and ``echo``: the stack as processes over Zenoh.
 
 Standalone click commands, registered on the main group with ``main.add_command(...)``; also
-runnable as ``python -m overdrive.bus_cli COMMAND`` (the launcher starts nodes that way).
+runnable as ``python -m overdrive.cli.bus COMMAND`` (the launcher starts nodes that way).
 Endpoints are loopback-only unless ``--allow-remote``; see docs/multiprocess.md.
 """
 
@@ -18,7 +18,29 @@ from typing import Any
 import click
 import msgspec
 
-from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE
+from overdrive.bus.access import read_tool_credentials
+from overdrive.bus.tool_gate import run_tool_gate
+from overdrive.bus.wire import WireError
+from overdrive.bus.zenoh_bus import (
+    ALIVE,
+    DEFAULT_ENDPOINT,
+    DEFAULT_VEHICLE,
+    _check_endpoint,
+    check_topic,
+    open_bus,
+)
+from overdrive.cli.summary import print_summary
+from overdrive.observe.run_files import OutDirError, make_out_dir
+from overdrive.run.launch import (
+    UNAVAILABLE,
+    Launch,
+    check_launchable,
+    preset_scenario,
+    run_node,
+    stack_registry,
+)
+from overdrive.run.sim import default_out_dir
+from overdrive.scenario.schema import ScenarioError, load_scenario
 
 EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
 NODE_CHOICES = ("move", "driving", "speed", "vehicle-sim", "xgv-client")
@@ -37,8 +59,6 @@ def _usage(message: str) -> None:
 
 
 def _load(path: Path) -> Any:
-    from overdrive.scenario import ScenarioError, load_scenario
-
     try:
         return load_scenario(path)
     except ScenarioError as exc:
@@ -81,10 +101,6 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
          duration_s: float | None, rt_priority: bool, zenoh_config: str | None, user: str | None,
          allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
-    from overdrive.launch import UNAVAILABLE, preset_scenario, run_node
-    from overdrive.run_files import OutDirError, make_out_dir
-    from overdrive.scenario import ScenarioError
-
     if name in UNAVAILABLE:
         _usage(f"node {name}: {UNAVAILABLE[name]}")
     if not listen and not connect:
@@ -138,11 +154,6 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
            credentials: str | None, no_plot: bool, rt_priority: bool, quiet: bool, open_bus: bool,
            zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
-    from overdrive.launch import Launch, check_launchable
-    from overdrive.run_files import OutDirError, make_out_dir
-    from overdrive.scenario import ScenarioError
-    from overdrive.sim import default_out_dir
-
     del user  # each process uses its node name
     loaded = _load(scenario)
     actions = [_parse_action(k, "kill") for k in kills]
@@ -183,8 +194,6 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     if quiet:
         click.echo(str(out))
     else:
-        from overdrive.cli import print_summary
-
         print_summary(result.summary, out)
     raise SystemExit(result.exit_code)
 
@@ -196,8 +205,6 @@ def _run_access(run_dir: Path | None, connect: tuple[str, ...], vehicle: str, us
     options and ``$OVERDRIVE_ZENOH_PASSWORD``."""
     if run_dir is None:
         return connect, vehicle, user, os.environ.get(PASSWORD_ENV)
-    from overdrive.bus.access import read_tool_credentials
-
     deadline = time.monotonic() + wait_s
     while True:
         try:
@@ -218,9 +225,6 @@ def _client(connect: tuple[str, ...], sender: str, vehicle: str, zenoh_config: s
             user: str | None, allow_remote: bool, wait_s: float = CONNECT_WAIT_S,
             password: str | None = None) -> Any:
     """A client session to a running launch; retries for ``wait_s`` (it may be starting)."""
-    from overdrive.bus.zenoh_bus import open_bus
-    from overdrive.launch import stack_registry
-
     deadline = time.monotonic() + wait_s
     while True:
         try:
@@ -257,9 +261,6 @@ def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, r
 
     A locked-down launch (the default) admits a tool only with ``--run RUN_DIR`` and lets it
     write only ``events``; everything else is denied and counted in the run's summary."""
-    from overdrive.bus.zenoh_bus import check_topic
-    from overdrive.launch import stack_registry
-
     registry = stack_registry()
     try:
         check_topic(topic)
@@ -315,9 +316,6 @@ def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[
     """Print messages on TOPIC as JSON lines, like ``ros2 topic echo`` (``**`` matches all).
 
     A locked-down launch (the default) admits a tool only with ``--run RUN_DIR``."""
-    from overdrive.bus.wire import WireError
-    from overdrive.bus.zenoh_bus import ALIVE
-
     if not topic or "//" in topic or topic.startswith("/"):
         _usage(f"invalid topic {topic!r}")
     connect, vehicle, user, password = _run_access(
@@ -394,10 +392,6 @@ def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[
 def gate(public: str, listen: str, connect: tuple[str, ...], access_dir: Path,
          report: Path | None, ready_path: Path | None, vehicle: str, allow_remote: bool) -> None:
     """The tool gate of a locked-down launch (started by ``overdrive launch``)."""
-    from overdrive.bus.tool_gate import run_tool_gate
-    from overdrive.bus.zenoh_bus import _check_endpoint
-    from overdrive.launch import stack_registry
-
     try:
         for endpoint in (public, listen, *connect):
             _check_endpoint(endpoint, allow_remote)

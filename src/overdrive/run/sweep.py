@@ -23,9 +23,10 @@ from typing import Any
 
 import yaml
 
-from overdrive.provenance import run_provenance
-from overdrive.run_files import finite_json, make_out_dir
-from overdrive.scenario import (
+from overdrive.observe.provenance import run_provenance
+from overdrive.observe.run_files import finite_json, make_out_dir
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import (
     Scenario,
     ScenarioError,
     SweepSpec,
@@ -155,8 +156,6 @@ def unavoidable_cause(fault: str | None, rules: list[str], summary: dict[str, An
 
 def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
     """Run one sampled scenario (in a worker process); return its figures."""
-    from overdrive.sim import run_scenario
-
     data, source, run, fault = job
     scenario = parse_scenario(data, f"{source} (run {run})")
     summary = run_scenario(scenario, None, keep_trace=False, plot=False).summary
@@ -289,7 +288,7 @@ def _stats(values: list[float]) -> dict[str, float] | None:
 
 
 def _plot(results: list[dict[str, Any]], out_png: Path) -> None:
-    from overdrive.plot import plot_distributions
+    from overdrive.observe.plot import plot_distributions
 
     samples = {
         "smallest authorization margin at a stop (m)": [r["authorization_margin_m"] for r in results

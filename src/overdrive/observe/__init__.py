@@ -1,0 +1,10 @@
+"""overdrive.observe: what a run leaves behind and who judges it: the trace recorder, run.mcap
+(writer and reader), the live Foxglove view, plots, run files and provenance, and the run judge
+(``judge``: the independent safety monitor of whole runs, from ground truth).
+
+The judge lives here, not in ``safety``: it watches runs from outside, over the bus taps, and
+nothing in the stack may consult it. ``safety`` holds what the servers and the vehicle own.
+
+Layer 8. May import ``scenario``, ``runtime``, ``bus``, ``vehicle``, ``servers`` (for the types
+it records), ``safety``, ``dynamics``, ``messages``. Must not import ``run`` or ``cli``.
+"""

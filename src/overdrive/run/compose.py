@@ -1,0 +1,132 @@
+"""The nodes of a run, composed from its scenario: the simulated vehicle or the XGV link, the
+scenario player and the servers the scenario's events need, in tick order. Every runner
+(``sim``, ``drive``, ``launch``, ``replay``, ``docs``) builds its nodes here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Literal
+
+from overdrive.runtime.lockstep import Node
+from overdrive.runtime.xgv_link import (
+    Address,
+    ClientPort,
+    LoopbackLink,
+    UdpPort,
+    XgvCommandNode,
+    XgvSensorNode,
+    XgvSimNode,
+)
+from overdrive.scenario.player import ScenarioPlayer, world_from_spec
+from overdrive.scenario.schema import (
+    DRIVING_KINDS,
+    MOVE_KINDS,
+    OPEN_LOOP_KINDS,
+    SPEED_KINDS,
+    Scenario,
+    ScenarioError,
+)
+from overdrive.servers.driving import DrivingModule
+from overdrive.servers.move import MoveServer, MoveServerConfig
+from overdrive.servers.speed import SpeedServer
+from overdrive.vehicle.plain_jaus import JausProfile
+from overdrive.vehicle.sim_node import VehicleSim
+from overdrive.vehicle.xgv import XgvSimulator
+from overdrive.vehicle.xgv_client import XgvClient, XgvClientConfig
+
+
+def build_nodes(scenario: Scenario) -> list[Node]:
+    """The nodes a scenario needs, in tick order (vehicle first). Raises ScenarioError."""
+    spec = scenario.spec
+    kinds = scenario.event_kinds
+    closed_loop = kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS)
+    if kinds & OPEN_LOOP_KINDS and closed_loop:
+        raise ScenarioError(scenario.source, "events",
+                            "open-loop events (actuators, gear, engine) cannot be mixed with "
+                            f"server events ({', '.join(sorted(closed_loop))})")
+    if kinds & SPEED_KINDS and kinds & (DRIVING_KINDS | MOVE_KINDS):
+        raise ScenarioError(scenario.source, "events",
+                            "set_speed makes the scenario the speed server's client; it cannot be "
+                            "mixed with move/advance/max_speed/steer, whose client is the driving module")
+    params = scenario.vehicle
+    ready = spec.start == "ready"
+    nodes: list[Node] = [VehicleSim(params, world_from_spec(spec.world), spec.seed, ready=ready),
+                         ScenarioPlayer(scenario)]
+    if kinds & MOVE_KINDS:
+        nodes.append(MoveServer(params, config=MoveServerConfig(friction=spec.world.friction)))
+    if kinds & (DRIVING_KINDS | MOVE_KINDS):
+        nodes.append(DrivingModule(params, friction=spec.world.friction))
+    if kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS):
+        nodes.append(SpeedServer(params, initial_state="run" if ready else "parked",
+                                 initial_gear=params.drive_gear if ready else None))
+    if spec.interface == "jaus" or spec.control == "motion-profile":
+        # the simulated XGV and the stack's JAUS client stand where VehicleSim stands (actuator
+        # monitoring is off over JAUS: without_actuator_monitoring)
+        return lockstep_nodes(scenario, nodes[1:])
+    return nodes
+
+
+def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
+    """The scenario's faults on channel ``jaus``: (kind, start, duration, delay)."""
+    found = []
+    for event in scenario.events:
+        body = event.body
+        if event.kind in ("drop", "delay", "duplicate", "reorder") and body.channel == "jaus":
+            found.append((event.kind, event.at_s, body.for_s, getattr(body, "delay_s", 0.0)))
+    return found
+
+
+def without_actuator_monitoring(servers: Sequence[Any]) -> None:
+    """JAUS 3.3 reports the wrench *efforts* (and under motion profile the XGV's own loops set
+    them), not actuator positions: the servers' actuator monitoring (issue 16) has nothing to
+    compare its commands with over JAUS, so it is switched off (a residual hazard: H11, H14).
+    Nor does an XGV have the collision radar: the move server's radar health check (issue 16)
+    would hold a vehicle that has none, so it is told none is fitted (H22: over JAUS the planner
+    owns the clearance ahead)."""
+    for node in servers:
+        if hasattr(node, "monitor_actuators"):
+            node.monitor_actuators = False
+        corridor = getattr(node, "corridor", None)
+        if corridor is not None:
+            corridor.fitted = False
+
+
+def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
+                   profile: JausProfile = "xgv") -> list[Any]:
+    """The XGV, the client and ``servers`` (player first) for a lock-step run of ``scenario``
+    (``profile="plain"``: the client reads the simulated XGV as a plain JAUS vehicle)."""
+    spec = scenario.spec
+    transport: Literal["udp", "memory"] = "udp" if spec.interface == "jaus" else "memory"
+    link = LoopbackLink(transport, jaus_faults(scenario))
+    simulator = XgvSimulator(scenario.vehicle, world_from_spec(spec.world), spec.seed,
+                             ready=spec.start == "ready")
+    control = "motion-profile" if spec.control == "motion-profile" else "wrench"
+    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, profile=profile))
+    port = ClientPort(link)
+    without_actuator_monitoring(servers)
+    return [XgvSimNode(simulator, link), XgvSensorNode(client, port), *servers,
+            XgvCommandNode(client, port)]
+
+
+def drive_nodes(scenario: Scenario, servers: Sequence[Any], remote: Address,
+                bind: Address = ("0.0.0.0", 0), profile: JausProfile = "xgv") -> list[Any]:
+    """The client and ``servers`` for a wall-clock run against the vehicle at ``remote``
+    (``profile``: an XGV, or a plain JAUS 3.3 vehicle, ``vehicle.plain_jaus``)."""
+    control = "motion-profile" if scenario.spec.control == "motion-profile" else "wrench"
+    client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, publish_truth=True,
+                                                         accel_filter_s=0.05, profile=profile))
+    port = ClientPort(UdpPort(remote, bind))
+    without_actuator_monitoring(servers)
+    return [XgvSensorNode(client, port), *servers, XgvCommandNode(client, port)]
+
+
+def plain_profile_problem(scenario: Scenario) -> str | None:
+    """Why ``scenario`` cannot drive a plain JAUS vehicle (None: it can). Such a vehicle has
+    no Motion Profile Driver and reports no engine or gear (``vehicle.plain_jaus``)."""
+    if scenario.spec.control != "wrench":
+        return "control: a plain JAUS vehicle has no Motion Profile Driver; use control: wrench"
+    if scenario.spec.start != "ready":
+        return ("start: a plain JAUS vehicle reports no engine or gear, so the stack cannot "
+                "start or shift it; use start: ready (engine running, in drive)")
+    return None

@@ -1,0 +1,253 @@
+"""The package's layers, held from its source: no import circle between files or folders, no
+import that runs upward (``overdrive.LAYERS``), no function-level import of the project's own
+modules but the listed ones, at most three modules at the top, every folder's ``__init__``
+saying what it may and must not import. The checker is shown to fail on each kind of breach."""
+
+from __future__ import annotations
+
+import ast
+import itertools
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import NamedTuple
+
+import pytest
+
+import overdrive
+
+SRC = Path(overdrive.__file__).resolve().parent
+
+LAZY_IMPORTS: dict[tuple[str, str], str] = {
+    # (importer, imported): why it is imported inside a function
+    ("overdrive.cli.observe", "overdrive.run.replay"): "mcap (~110 ms): keeps `overdrive --help` fast",
+    ("overdrive.cli.observe", "overdrive.observe.plot"): "matplotlib (~0.9 s): --help stays fast",
+    ("overdrive.cli.observe", "overdrive.observe.live"): "foxglove-sdk (~90 ms): only for --live",
+    ("overdrive.observe.mcap_log", "overdrive.observe.mcap_writer"): "zstandard: only when writing",
+    ("overdrive.observe.plot", "overdrive.observe.mcap_log"): "mcap: only when plotting a run.mcap",
+    ("overdrive.run.launch", "overdrive.observe.plot"): "matplotlib: only when a plot is asked for",
+    ("overdrive.run.sim", "overdrive.observe.mcap_log"): "mcap: only when run.mcap is recorded",
+    ("overdrive.run.sim", "overdrive.observe.plot"): "matplotlib: only when a plot is asked for",
+    ("overdrive.run.sweep", "overdrive.observe.plot"): "matplotlib: only for distributions.png",
+}
+"""Function-level imports allowed: each for an optional heavy dependency, never for a circle."""
+MAX_TOP_MODULES = 3
+
+
+class Import(NamedTuple):
+    importer: str
+    imported: str
+    lazy: bool       # inside a function
+    line: int
+
+
+def module_name(path: Path, root: Path, package: str = "overdrive") -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join([package, *parts])
+
+
+def imports_in(source: str, importer: str, known: Iterable[str]) -> list[Import]:
+    """The project's imports in ``source``, each resolved to the longest known module."""
+    known = set(known)
+
+    def resolve(name: str) -> str | None:
+        while name:
+            if name in known:
+                return name
+            name = name.rpartition(".")[0]
+        return None
+
+    found: list[Import] = []
+
+    def visit(node: ast.AST, lazy: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            inner = lazy or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+            names: list[str] = []
+            if isinstance(child, ast.Import):
+                names = [a.name for a in child.names]
+            elif isinstance(child, ast.ImportFrom) and child.module and child.level == 0:
+                names = [f"{child.module}.{a.name}" for a in child.names]
+            for name in names:
+                target = resolve(name)
+                if target is not None and target != importer and name.startswith("overdrive"):
+                    found.append(Import(importer, target, lazy, child.lineno))
+            visit(child, inner)
+
+    visit(ast.parse(source), False)
+    return found
+
+
+def layer_of(module: str, layers: tuple[tuple[str, ...], ...]) -> tuple[int, str] | None:
+    """``(rank, group)``: rank 0 is the bottom; group is the folder or bottom module."""
+    parts = module.split(".")
+    if len(parts) == 1:
+        return (-1, "")           # the package face: its constants, below everything
+    for rank, names in enumerate(reversed(layers)):
+        if parts[1] in names:
+            return rank, parts[1]
+    return None
+
+
+def circles(edges: Iterable[tuple[str, str]]) -> list[list[str]]:
+    """Strongly connected groups of more than one node (Tarjan, iterative)."""
+    graph: dict[str, set[str]] = {}
+    for a, b in edges:
+        graph.setdefault(a, set()).add(b)
+        graph.setdefault(b, set())
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+    counter = itertools.count()
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = next(counter)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = next(counter)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph[child]))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                group = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    group.append(member)
+                    if member == node:
+                        break
+                if len(group) > 1:
+                    found.append(sorted(group))
+    return found
+
+
+def breaches(imports: list[Import], layers: tuple[tuple[str, ...], ...],
+             lazy_allowed: Mapping[tuple[str, str], str]) -> list[str]:
+    """Every rule the imports break, one line each (empty: the layering holds)."""
+    out = []
+    for imp in imports:
+        a, b = layer_of(imp.importer, layers), layer_of(imp.imported, layers)
+        if a is None or b is None:
+            out.append(f"{imp.importer}:{imp.line} -> {imp.imported}: not in overdrive.LAYERS")
+            continue
+        if a[1] != b[1] and b[0] >= a[0]:
+            how = "sideways" if b[0] == a[0] else "upward"
+            out.append(f"{imp.importer}:{imp.line} -> {imp.imported}: {how} import")
+        if imp.lazy and (imp.importer, imp.imported) not in lazy_allowed:
+            out.append(f"{imp.importer}:{imp.line} -> {imp.imported}: function-level import "
+                       "not in LAZY_IMPORTS")
+    for group in circles((i.importer, i.imported) for i in imports):
+        out.append(f"file circle: {' <-> '.join(group)}")
+    folder_edges = set()
+    for imp in imports:
+        a, b = layer_of(imp.importer, layers), layer_of(imp.imported, layers)
+        if a and b and a[1] != b[1]:
+            folder_edges.add((a[1] or "overdrive", b[1] or "overdrive"))
+    for group in circles(folder_edges):
+        out.append(f"folder circle: {' <-> '.join(group)}")
+    return out
+
+
+def package_imports(src: Path = SRC) -> list[Import]:
+    files = {module_name(p, src): p for p in sorted(src.rglob("*.py"))}
+    found = []
+    for name, path in files.items():
+        found += imports_in(path.read_text(encoding="utf-8"), name, files)
+    return found
+
+
+# ------------------------------------------------------------------------------- the package
+
+def test_the_package_keeps_its_layers() -> None:
+    assert breaches(package_imports(), overdrive.LAYERS, LAZY_IMPORTS) == []
+
+
+def test_every_listed_lazy_import_exists() -> None:
+    """A stale entry would hide a new one behind its name."""
+    lazy = {(i.importer, i.imported) for i in package_imports() if i.lazy}
+    assert set(LAZY_IMPORTS) - lazy == set()
+
+
+def test_at_most_three_modules_at_the_top() -> None:
+    top = sorted(p.name for p in SRC.glob("*.py"))
+    assert len(top) <= MAX_TOP_MODULES, top
+
+
+def test_every_folder_is_a_layer_and_says_what_it_may_import() -> None:
+    named = {name for layer in overdrive.LAYERS for name in layer}
+    for folder in sorted(p for p in SRC.iterdir() if p.is_dir() and p.name != "__pycache__"):
+        assert folder.name in named, f"{folder.name}/ is in no layer of overdrive.LAYERS"
+        doc = ast.get_docstring(ast.parse((folder / "__init__.py").read_text(encoding="utf-8")))
+        assert doc, f"{folder.name}/__init__.py has no docstring"
+        words = " ".join(doc.split())
+        assert "May import" in words and "Must not import" in words, folder.name
+
+
+# ------------------------------------------------------------------------ the checker fails
+
+LAYERS = (("top",), ("mid_a", "mid_b"), ("low",))
+KNOWN = ("overdrive.top.x", "overdrive.mid_a.y", "overdrive.mid_b.z", "overdrive.low.w",
+         "overdrive.top.v")
+
+
+def _check(sources: dict[str, str], lazy_allowed: Mapping[tuple[str, str], str] = {}) -> list[str]:
+    imports = [i for name, text in sources.items() for i in imports_in(text, name, KNOWN)]
+    return breaches(imports, LAYERS, lazy_allowed)
+
+
+def test_checker_passes_a_clean_layering() -> None:
+    assert _check({"overdrive.top.x": "from overdrive.mid_a.y import f\n",
+                   "overdrive.mid_a.y": "import overdrive.low.w\n"}) == []
+
+
+def test_checker_finds_an_upward_import() -> None:
+    found = _check({"overdrive.low.w": "from overdrive.mid_a.y import f\n"})
+    assert found == ["overdrive.low.w:1 -> overdrive.mid_a.y: upward import"]
+
+
+def test_checker_finds_a_sideways_import_between_folders_of_one_layer() -> None:
+    found = _check({"overdrive.mid_a.y": "from overdrive.mid_b.z import f\n"})
+    assert found == ["overdrive.mid_a.y:1 -> overdrive.mid_b.z: sideways import"]
+
+
+def test_checker_finds_a_file_circle_even_through_function_imports() -> None:
+    found = _check({"overdrive.top.x": "from overdrive.top.v import f\n",
+                    "overdrive.top.v": "def g():\n    from overdrive.top.x import h\n"},
+                   {("overdrive.top.v", "overdrive.top.x"): "listed"})
+    assert found == ["file circle: overdrive.top.v <-> overdrive.top.x"]
+
+
+def test_checker_finds_an_unlisted_function_level_import() -> None:
+    source = "def g():\n    from overdrive.low.w import f\n"
+    found = _check({"overdrive.top.x": source})
+    assert found == ["overdrive.top.x:2 -> overdrive.low.w: function-level import not in "
+                     "LAZY_IMPORTS"]
+    assert _check({"overdrive.top.x": source}, {("overdrive.top.x", "overdrive.low.w"): "ok"}) == []
+
+
+def test_checker_finds_a_folder_circle() -> None:
+    found = _check({"overdrive.low.w": "from overdrive.top.x import f\n",
+                    "overdrive.top.x": "from overdrive.low.w import g\n"})
+    assert "folder circle: low <-> top" in found
+
+
+@pytest.mark.parametrize("name", ["overdrive.elsewhere.q"])
+def test_checker_finds_a_module_outside_every_layer(name: str) -> None:
+    imports = imports_in("from overdrive.low.w import f\n", name, KNOWN)
+    assert breaches(imports, LAYERS, {}) == [
+        f"{name}:1 -> overdrive.low.w: not in overdrive.LAYERS"]
