@@ -19,7 +19,7 @@ from overdrive.bus.local import LocalBus
 from overdrive.expect import check
 from overdrive.messages import Topic
 from overdrive.player import ScenarioPlayer, channel_faults, world_from_spec
-from overdrive.provenance import run_provenance
+from overdrive.provenance import code_provenance, run_provenance
 from overdrive.recorder import Recorder
 from overdrive.run_files import finite_json
 from overdrive.runtime import DEFAULT_PERIOD_S, LockstepRuntime, Node
@@ -120,6 +120,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     the judge takes as truth when there is no simulator (``overdrive drive``).
     """
     nodes = nodes if nodes is not None else build_nodes(scenario)
+    code_provenance()     # read before the run folder exists: it may lie inside the checkout
     bus = LocalBus()
     faults = channel_faults(scenario)
     bus.channel = faults
