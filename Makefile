@@ -15,15 +15,18 @@ LOCK := requirements.lock
 LOCK_TOOL := uv==0.13.9
 LOCK_VENV := .venv-lock
 WHEELS ?= wheels
-# `make wheels WHEELS_TARGET="--platform manylinux2014_aarch64 --python-version 3.12 --only-binary=:all:"`
-# fetches for another vehicle computer than this machine.
-WHEELS_TARGET ?=
 
 .PHONY: run test test-under-load launch-under-load lint bench clean coverage-gate interop test-variants \
         check-env lock lock-upgrade wheels install-offline test-offline
 
+# pip first, on its own (the lock's pip, hash-checked), so the pip that installs the rest is the
+# locked one rather than one replacing itself half-way through an install.
+PIP_PIN = awk '/^pip==/{p=1;print;next} p&&/^ /{print;next} {p=0}' $(LOCK) > $(VENV)/pip.lock
+
 $(STAMP): pyproject.toml $(LOCK)
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PIP_PIN)
+	$(PY) -m pip install --quiet --require-hashes -r $(VENV)/pip.lock
 	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	@touch $(STAMP)
@@ -32,34 +35,40 @@ $(STAMP): pyproject.toml $(LOCK)
 check-env: $(STAMP)
 	@$(PY) scripts/check_env.py $(LOCK)
 
-$(LOCK_VENV)/bin/uv:
-	$(PYTHON) -m venv $(LOCK_VENV)
+LOCK_TOOL_STAMP := $(LOCK_VENV)/.$(LOCK_TOOL)
+
+$(LOCK_TOOL_STAMP):
+	@test -x $(LOCK_VENV)/bin/python || $(PYTHON) -m venv $(LOCK_VENV)
 	$(LOCK_VENV)/bin/python -m pip install --quiet '$(LOCK_TOOL)'
+	@touch '$(LOCK_TOOL_STAMP)'
 
 LOCK_COMPILE = printf 'setuptools>=77\npip>=23.2\n' | $(LOCK_VENV)/bin/uv pip compile --quiet \
 	pyproject.toml - --extra test --universal --python-version 3.11 --generate-hashes \
 	--custom-compile-command "make lock" -o $(LOCK)
 
-lock: $(LOCK_VENV)/bin/uv
+lock: $(LOCK_TOOL_STAMP)
 	$(LOCK_COMPILE)
 
-lock-upgrade: $(LOCK_VENV)/bin/uv
+lock-upgrade: $(LOCK_TOOL_STAMP)
 	$(LOCK_COMPILE) --upgrade
 	@git --no-pager diff --stat -- $(LOCK) || true
 	$(MAKE) test
 
-# Offline vehicle computers: `make wheels` on a connected machine (same platform and Python, or
-# WHEELS_TARGET) fills wheels/ with every file the lock pins, hash-checked; copy the checkout with
-# wheels/ to the vehicle and run `make install-offline` there: no package index is ever asked
-# (--no-index, --isolated: pip's own configuration and PIP_* variables are ignored).
-wheels:
-	$(PYTHON) -m pip download --quiet --require-hashes --no-deps -r $(LOCK) -d $(WHEELS) $(WHEELS_TARGET)
+# Offline vehicle computers: `make wheels` on a connected machine of the vehicle's platform and
+# Python version (pip evaluates the lock's markers for the Python that runs it) fills wheels/ with
+# every file the lock pins, hash-checked; copy the checkout with wheels/ to the vehicle and run
+# `make install-offline` there: no package index is ever asked (--no-index; PIP_CONFIG_FILE=/dev/null
+# and --isolated: no pip configuration file and no PIP_* variable is read).
+wheels: $(STAMP)
+	$(PY) -m pip download --quiet --require-hashes --no-deps --only-binary=:all: -r $(LOCK) -d $(WHEELS)
 
 install-offline:
 	@test -d $(WHEELS) || { echo "install-offline: no $(WHEELS)/ folder: run 'make wheels' on a connected machine and copy it here" >&2; exit 2; }
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip --isolated install --quiet --no-index --find-links $(WHEELS) --require-hashes -r $(LOCK)
-	$(PY) -m pip --isolated install --quiet --no-index --no-deps --no-build-isolation -e .
+	@$(PIP_PIN)
+	PIP_CONFIG_FILE=/dev/null $(PY) -m pip --isolated install --quiet --no-index --find-links $(WHEELS) --require-hashes -r $(VENV)/pip.lock
+	PIP_CONFIG_FILE=/dev/null $(PY) -m pip --isolated install --quiet --no-index --find-links $(WHEELS) --require-hashes -r $(LOCK)
+	PIP_CONFIG_FILE=/dev/null $(PY) -m pip --isolated install --quiet --no-index --no-deps --no-build-isolation -e .
 	@touch $(STAMP)
 	@$(PY) scripts/check_env.py $(LOCK)
 

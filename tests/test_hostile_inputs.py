@@ -32,6 +32,7 @@ from overdrive.scenario.safe_yaml import (
     MAX_FILE_BYTES,
     MAX_NODES,
     InputError,
+    _LibyamlNesting,
     _load_yaml,
     _Loader,
     _PyLoader,
@@ -121,6 +122,13 @@ RED_TEAM: dict[str, tuple[bytes, tuple[str, ...]]] = {
     "merge key": (b"base: &b {name: t}\n<<: *b\n", ("merge keys",)),
     "two documents": (b"name: a\n---\nname: b\n", ("more than one YAML document",)),
     "list as mapping key": (b"name: t\n? [a, b]\n: 1\n", ("mapping key must be a plain value",)),
+    "alias chain nesting past the limit": (                             # was: RecursionError
+        ("name: t\nx1: &x1 " + "[" * 30 + "1" + "]" * 30 + "\n" + "".join(
+            f"x{i}: &x{i} " + "[" * 30 + f"*x{i - 1}" + "]" * 30 + "\n" for i in range(2, 56))
+         ).encode(), ("x2[0][0]", f"nested deeper than {MAX_DEPTH} levels")),
+    "bad character past libyaml's nesting limit": (                     # was: ReaderError traceback
+        b"name: t\nz: " + b"[" * 1001 + b"]" * 1001 + b"\n" + b"# pad\n" * 3000
+        + 'note: "\x80"\n'.encode(), ("not valid YAML", "#x0080")),
 }
 
 
@@ -418,8 +426,10 @@ def test_deep_nesting_names_the_field_whichever_parser_stops_first(case: str) ->
             _load_yaml(text, loader) if loader else load_yaml(text)
         except InputError as exc:
             messages[name] = str(exc)
-        except Exception as exc:    # libyaml's own limit: the fallback's trigger
-            messages[name] = type(exc).__name__
+        except _LibyamlNesting:     # libyaml's own limit: the fallback's trigger
+            messages[name] = "libyaml's limit"
+    if yaml.__with_libyaml__ and case == "3,000 levels of lists":
+        assert messages["libyaml"] == "libyaml's limit", "the fallback is what this case tests"
     assert messages["load_yaml"] == messages["pure"]
     assert f"nested deeper than {MAX_DEPTH} levels" in messages["load_yaml"]
     assert messages["load_yaml"].startswith(HOSTILE[case][1][0])

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -44,14 +45,20 @@ def test_lock_pins_every_dependency_with_hashes() -> None:
     # direct (pyproject.toml), test extras, the installer and the build backend
     assert {"msgspec", "pyyaml", "eclipse-zenoh", "pytest", "hypothesis", "packaging", "pip",
             "setuptools"} <= names
-    assert text.count("--hash=sha256:") >= len(entries), "every pin carries its hashes"
-    blocks = [b for b in text.split("\n") if b and b[0].isalpha()]
-    assert len(blocks) == len(entries)
+    pins = re.split(r"\n(?=[A-Za-z])", text[text.index("\n", text.index("make lock")) + 1:])
+    assert len(pins) == len(entries)
+    for pin in pins:
+        assert pin.split("\n")[0].rstrip().endswith("\\"), pin
+        assert re.search(r"--hash=sha256:[0-9a-f]{64}", pin), f"no hash: {pin.splitlines()[0]}"
 
 
 def test_installed_environment_is_the_lock() -> None:
     """What `make test` runs on is exactly what the lock pins (the suite's own install)."""
     assert lock_drift(lock_entries(LOCK.read_text(encoding="utf-8")), installed_versions()) == []
+
+
+def test_a_version_spelled_differently_is_not_drift() -> None:
+    assert lock_drift([LockEntry("tzdata", "2026.6", "")], {"tzdata": "2026.6.0"}) == []
 
 
 def test_drift_names_each_package_whose_version_differs() -> None:
@@ -78,6 +85,17 @@ def test_a_lock_line_that_pins_nothing_is_refused(line: str) -> None:
         lock_entries(f"click==8.5.1 \\\n    --hash=sha256:00\n{line}\n")
 
 
+def test_a_dependency_missing_from_the_lock_stops_the_suite(tmp_path: Path) -> None:
+    text = LOCK.read_text(encoding="utf-8")
+    rich = re.search(r"^rich==.*?(?=^[a-z])", text, re.S | re.M).group(0)
+    without = tmp_path / LOCK_NAME
+    without.write_text(text.replace(rich, ""), encoding="utf-8")
+    done = subprocess.run([sys.executable, str(CHECK_ENV), str(without)], capture_output=True,
+                          text=True, check=False)
+    assert done.returncode == 3
+    assert "rich: required by pyproject.toml, not in requirements.lock (run make lock)" in done.stderr
+
+
 def test_changed_version_stops_the_suite_naming_the_package(tmp_path: Path) -> None:
     """scripts/check_env.py (the first step of `make test`) against a lock whose pyyaml pin is
     not what is installed: the same comparison as an installed version that moved."""
@@ -97,6 +115,7 @@ def test_changed_version_stops_the_suite_naming_the_package(tmp_path: Path) -> N
 def test_summary_traces_the_run_to_code_lock_interpreter_vehicle_and_scenario(
         tmp_path: Path) -> None:
     data = scenario_dict(duration_s=2, seed=7)
+    code_provenance.cache_clear()    # git state now, not when this worker first ran a scenario
     for name in ("a", "b"):
         run_scenario(parse_scenario(data), tmp_path / name, plot=False)
     a, b = (json.loads((tmp_path / n / "summary.json").read_text()) for n in ("a", "b"))
@@ -116,12 +135,16 @@ def test_summary_traces_the_run_to_code_lock_interpreter_vehicle_and_scenario(
     assert a == b
 
 
-def test_scenario_hash_changes_with_any_parameter() -> None:
-    one = run_scenario(parse_scenario(scenario_dict(duration_s=1)), None).summary["provenance"]
-    two = run_scenario(parse_scenario(scenario_dict(duration_s=1, vehicle={
-        "preset": "escape-hybrid", "mass_kg": 1800})), None).summary["provenance"]
+@pytest.mark.parametrize("change", [{"seed": 2}, {"duration_s": 1.5},
+                                    {"vehicle": {"preset": "escape-hybrid", "mass_kg": 1800}},
+                                    {"world": {"friction": 0.5}}])
+def test_scenario_hash_changes_with_the_scenario(change: dict) -> None:
+    base = scenario_dict(duration_s=1)
+    one = run_scenario(parse_scenario(base), None).summary["provenance"]
+    two = run_scenario(parse_scenario(base | change), None).summary["provenance"]
     assert one["scenario_sha256"] != two["scenario_sha256"]
-    assert two["vehicle"]["mass_kg"] == 1800
+    if "vehicle" in change:
+        assert two["vehicle"]["mass_kg"] == 1800
 
 
 def test_sweep_report_carries_provenance_and_base_seed(tmp_path: Path) -> None:
@@ -130,6 +153,6 @@ def test_sweep_report_carries_provenance_and_base_seed(tmp_path: Path) -> None:
                                        "--out", str(tmp_path / "sw")])
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "sw" / "sweep.json").read_text())
-    assert report["provenance"]["git_commit"] == code_provenance()["git_commit"]
+    assert report["provenance"]["git_commit"] == _git("rev-parse", "HEAD").strip()
     assert report["provenance"]["scenario"]["name"] == "move-straight"
-    assert isinstance(report["base_seed"], int)
+    assert report["base_seed"] == report["provenance"]["scenario"]["seed"]

@@ -26,6 +26,8 @@ from typing import Any, NamedTuple
 
 import msgspec
 from packaging.markers import InvalidMarker, Marker
+from packaging.requirements import InvalidRequirement, Requirement
+from packaging.version import InvalidVersion, Version
 
 import overdrive
 
@@ -95,9 +97,37 @@ def lock_drift(entries: list[LockEntry], installed: Mapping[str, str],
         have = installed.get(entry.name)
         if have is None:
             drift.append(f"{entry.name}: not installed (the lock pins {entry.version})")
-        elif have != entry.version:
+        elif not same_version(have, entry.version):
             drift.append(f"{entry.name}: {have} installed, the lock pins {entry.version}")
     return drift
+
+
+def same_version(a: str, b: str) -> bool:
+    """Equal as PEP 440 versions (``1.0`` == ``1.0.0``), or as strings when either is not one."""
+    try:
+        return Version(a) == Version(b)
+    except InvalidVersion:
+        return a == b
+
+
+def unlocked_requirements(entries: list[LockEntry]) -> list[str]:
+    """Requirements of the installed overdrive (its test extra included) that the lock does not
+    pin: a dependency added to pyproject.toml without ``make lock``."""
+    try:
+        requires = importlib.metadata.requires("overdrive") or []
+    except importlib.metadata.PackageNotFoundError:
+        return []
+    locked = {e.name for e in entries}
+    missing = set()
+    for text in requires:
+        try:
+            req = Requirement(text)
+        except InvalidRequirement:
+            continue
+        env_ok = req.marker is None or req.marker.evaluate({"extra": "test"})
+        if env_ok and normalize(req.name) not in locked:
+            missing.add(normalize(req.name))
+    return sorted(missing)
 
 
 def unlocked(entries: list[LockEntry], installed: Mapping[str, str]) -> list[str]:
@@ -124,12 +154,18 @@ def _git(root: Path, *args: str) -> str | None:
 
 @functools.cache
 def code_provenance() -> dict[str, Any]:
-    """The code and environment half, once per process (git and the package list are read)."""
+    """The code and environment half, once per process (git and the package list are read;
+    runners call it before they write anything, so a run folder inside the checkout does not
+    make the tree read as dirty). ``git_commit`` is null unless the package is imported from the
+    top of a git checkout (not a wheel, not a copy inside another repository)."""
     root = checkout_root()
     commit = dirty = None
-    if root is not None and (head := _git(root, "rev-parse", "HEAD")) is not None:
+    top = _git(root, "rev-parse", "--show-toplevel") if root is not None else None
+    in_own_repo = top is not None and Path(top.strip()).resolve() == root
+    if in_own_repo and (head := _git(root, "rev-parse", "HEAD")) is not None:
         commit = head.strip()
-        status = _git(root, "status", "--porcelain", "--untracked-files=normal")
+        status = _git(root, "--no-optional-locks", "status", "--porcelain",
+                      "--untracked-files=normal")
         dirty = None if status is None else bool(status.strip())
     lock_sha256 = drift = None
     lock_path = root / LOCK_NAME if root is not None else None

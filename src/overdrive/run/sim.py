@@ -17,7 +17,7 @@ from typing import Any
 from overdrive.bus.local import LocalBus
 from overdrive.messages import Topic
 from overdrive.observe.judge import DELIVERED_TOPICS, Monitor
-from overdrive.observe.provenance import run_provenance
+from overdrive.observe.provenance import code_provenance, run_provenance
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import finite_json
 from overdrive.run.compose import build_nodes
@@ -57,6 +57,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     the judge takes as truth when there is no simulator (``overdrive drive``).
     """
     nodes = nodes if nodes is not None else build_nodes(scenario)
+    code_provenance()     # read before the run folder exists: it may lie inside the checkout
     bus = LocalBus()
     faults = channel_faults(scenario)
     bus.channel = faults

@@ -53,7 +53,7 @@ of its events to resolve simple keys, so it stops at its own nesting limit (1,00
 before the loader sees one event; the pure-Python scanner stops looking ahead after 1,024
 characters and hands out the events, so the project's ``MAX_DEPTH`` names the field."""
 
-for _cls in {_Loader, _PyLoader}:
+for _cls in (_Loader, _PyLoader):
     _cls.add_implicit_resolver(
         _FLOAT_TAG, re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
         list("-+0123456789."))
@@ -109,11 +109,12 @@ def decode_utf8(data: bytes) -> str:
 class _Open:
     """A mapping or list being filled, with where it stands in the document."""
 
-    __slots__ = ("anchor", "first_node", "key", "value")
+    __slots__ = ("anchor", "first_node", "height", "key", "value")
 
     def __init__(self, value: dict | list, anchor: str | None, first_node: int) -> None:
         self.value, self.anchor, self.first_node = value, anchor, first_node
         self.key: Any = _NO_KEY
+        self.height = 1     # nesting levels of this collection and what it holds so far
 
 
 _NO_KEY = object()
@@ -152,9 +153,8 @@ class _LibyamlNesting(Exception):
 
 def _load_yaml(text: str, loader_class: type) -> Any:
     """``load_yaml`` with one parser: ``_LibyamlNesting`` when it is libyaml's limit."""
-    loader = loader_class(text)
     stack: list[_Open] = []
-    anchors: dict[str, tuple[Any, int]] = {}
+    anchors: dict[str, tuple[Any, int, int]] = {}     # name: (value, nodes, nesting levels)
     nodes = documents = 0
     root: Any = None
 
@@ -162,12 +162,13 @@ def _load_yaml(text: str, loader_class: type) -> Any:
         line = f" (line {event.start_mark.line + 1})" if event.start_mark is not None else ""
         return InputError(_path(stack), reason + line)
 
-    def add(value: Any, event: Any) -> None:
+    def add(value: Any, event: Any, height: int = 0) -> None:
         nonlocal root
         if not stack:
             root = value
             return
         frame = stack[-1]
+        frame.height = max(frame.height, height + 1)
         if isinstance(frame.value, list):
             frame.value.append(value)
         elif frame.key is _NO_KEY:
@@ -181,7 +182,9 @@ def _load_yaml(text: str, loader_class: type) -> Any:
             frame.value[frame.key] = value
             frame.key = _NO_KEY
 
+    loader = None
     try:
+        loader = loader_class(text)     # the pure-Python reader checks every character here
         while not isinstance(event := loader.get_event(), yaml.StreamEndEvent):
             if isinstance(event, (yaml.StreamStartEvent, yaml.DocumentEndEvent)):
                 continue
@@ -193,8 +196,9 @@ def _load_yaml(text: str, loader_class: type) -> Any:
             if isinstance(event, yaml.CollectionEndEvent):
                 frame = stack.pop()
                 if frame.anchor is not None:
-                    anchors[frame.anchor] = (frame.value, nodes - frame.first_node + 1)
-                add(frame.value, event)
+                    anchors[frame.anchor] = (frame.value, nodes - frame.first_node + 1,
+                                             frame.height)
+                add(frame.value, event, frame.height)
                 continue
             if getattr(event, "tag", None) is not None:
                 raise fail(f"YAML tags ({event.tag}) are not allowed", event)
@@ -207,11 +211,14 @@ def _load_yaml(text: str, loader_class: type) -> Any:
                 raise fail(f"more than {MAX_NODES} values (an alias counts as all it stands for)",
                            event)
             if alias:
-                add(copy.deepcopy(anchors[event.anchor][0]), event)
+                value, _, height = anchors[event.anchor]
+                if len(stack) + height > MAX_DEPTH:    # an alias chain nests as deep as it expands
+                    raise fail(f"nested deeper than {MAX_DEPTH} levels", event)
+                add(copy.deepcopy(value), event, height)
             elif isinstance(event, yaml.ScalarEvent):
                 value = _scalar(loader, event, fail)
                 if event.anchor is not None:
-                    anchors[event.anchor] = (value, 1)
+                    anchors[event.anchor] = (value, 1, 0)
                 add(value, event)
             elif len(stack) >= MAX_DEPTH:
                 raise fail(f"nested deeper than {MAX_DEPTH} levels", event)
@@ -223,7 +230,8 @@ def _load_yaml(text: str, loader_class: type) -> Any:
             raise _LibyamlNesting from None
         raise InputError("", f"not valid YAML: {exc}".replace("\n", " ")) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     return root
 
 
