@@ -24,9 +24,8 @@ LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("overdrive.cli.observe", "overdrive.observe.live"): "foxglove-sdk (~90 ms): only for --live",
     ("overdrive.observe.mcap_log", "overdrive.observe.mcap_writer"): "zstandard: only when writing",
     ("overdrive.observe.plot", "overdrive.observe.mcap_log"): "mcap: only when plotting a run.mcap",
-    ("overdrive.run.launch", "overdrive.observe.plot"): "matplotlib: only when a plot is asked for",
     ("overdrive.run.sim", "overdrive.observe.mcap_log"): "mcap: only when run.mcap is recorded",
-    ("overdrive.run.sim", "overdrive.observe.plot"): "matplotlib: only when a plot is asked for",
+    ("overdrive.observe.run_files", "overdrive.observe.plot"): "matplotlib: only for plot.png",
     ("overdrive.run.sweep", "overdrive.observe.plot"): "matplotlib: only for distributions.png",
 }
 """Function-level imports allowed: each for an optional heavy dependency, never for a circle."""
@@ -251,3 +250,37 @@ def test_checker_finds_a_module_outside_every_layer(name: str) -> None:
     imports = imports_in("from overdrive.low.w import f\n", name, KNOWN)
     assert breaches(imports, LAYERS, {}) == [
         f"{name}:1 -> overdrive.low.w: not in overdrive.LAYERS"]
+
+
+# ------------------------------------------------------------------- clocks and sockets
+
+SANS_IO = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus", "scenario")
+"""Logic and codecs: the time is passed in, bytes go in and out; no clock, no socket, no thread."""
+EDGE_MODULES = frozenset({"socket", "select", "selectors", "threading", "time", "asyncio"})
+
+
+def _stdlib_imports(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_logic_and_codecs_touch_no_clock_socket_or_thread() -> None:
+    found = []
+    for group in SANS_IO:
+        paths = [SRC / f"{group}.py"] if (SRC / f"{group}.py").exists() else \
+            sorted((SRC / group).rglob("*.py"))
+        for path in paths:
+            if bad := _stdlib_imports(path) & EDGE_MODULES:
+                found.append(f"{path.relative_to(SRC)}: imports {', '.join(sorted(bad))}")
+    assert found == []
+
+
+def test_one_module_opens_udp_sockets() -> None:
+    opening = sorted(str(p.relative_to(SRC)) for p in SRC.rglob("*.py")
+                     if "SOCK_DGRAM" in p.read_text(encoding="utf-8"))
+    assert opening == ["runtime/udp.py"]

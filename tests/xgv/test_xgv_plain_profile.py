@@ -34,7 +34,7 @@ from overdrive.jaus import (
     encode_datagram,
 )
 from overdrive.messages import GpsIns, Topic, VehicleStatus
-from overdrive.run.compose import build_nodes, lockstep_nodes, plain_profile_problem
+from overdrive.run.compose import build_servers, lockstep_nodes, plain_profile_problem
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import Scenario, load_scenario
 from overdrive.vehicle.plain_jaus import (
@@ -320,9 +320,7 @@ def test_plain_profile_has_no_motion_profile_driver() -> None:
 # ---------------------------------------------------------------- whole runs (lock-step)
 
 def plain_run(scenario: Scenario, origin_deg: tuple[float, float] | None = None) -> dict:
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    nodes = lockstep_nodes(scenario, build_nodes(embedded)[1:], profile="plain")
+    nodes = lockstep_nodes(scenario, build_servers(scenario, over_jaus=True), profile="plain")
     if origin_deg is not None:
         nodes[0].simulator.origin_deg = origin_deg
     result = run_scenario(scenario, None, keep_trace=True, nodes=nodes, plot=False)
@@ -375,9 +373,7 @@ def test_fixes_refused_while_driving_stop_the_vehicle(preset: str, at_s: float) 
     wrong mid-move): the stack stops within the move server's GPS timeout instead of driving
     on a frozen position; the fault is said once and the judge finds nothing."""
     scenario = ready("openjaus-wrench-drive.yaml", preset)
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    nodes = lockstep_nodes(scenario, build_nodes(embedded)[1:], profile="plain")
+    nodes = lockstep_nodes(scenario, build_servers(scenario, over_jaus=True), profile="plain")
     xgv = nodes[0]
     step = xgv.step
 

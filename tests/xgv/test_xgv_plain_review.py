@@ -30,7 +30,7 @@ from overdrive.jaus import (
     encode_datagram,
 )
 from overdrive.messages import PedalCommand, Topic, VehicleStatus
-from overdrive.run.compose import build_nodes, lockstep_nodes
+from overdrive.run.compose import build_servers, lockstep_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.vehicle.plain_jaus import (
     MAX_ABS_LATITUDE_DEG,
@@ -188,9 +188,7 @@ def hooked_run(name: str, preset: str, hook: Hook) -> Any:
     """``name`` against the simulated XGV read as a plain vehicle, every report it sends
     rewritten by ``hook(simulator, report, now_s)``."""
     scenario = ready(name, preset)
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    nodes = lockstep_nodes(scenario, build_nodes(embedded)[1:], profile="plain")
+    nodes = lockstep_nodes(scenario, build_servers(scenario, over_jaus=True), profile="plain")
     simulator = nodes[0].simulator
     original = simulator._report
 
@@ -409,9 +407,7 @@ def takeover_run(preset: str, take_s: float, release_s: float, *, reject_lost: b
     """openjaus-wrench-drive.yaml (plain) where another client with a higher authority takes
     the PD at ``take_s`` (its Reject to us lost or not) and releases it at ``release_s``."""
     scenario = ready("openjaus-wrench-drive.yaml", preset)
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    nodes = lockstep_nodes(scenario, build_nodes(embedded)[1:], profile="plain")
+    nodes = lockstep_nodes(scenario, build_servers(scenario, over_jaus=True), profile="plain")
     sim_node = nodes[0]
     simulator, link = sim_node.simulator, sim_node.link
     step = sim_node.step

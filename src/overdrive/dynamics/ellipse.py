@@ -296,6 +296,33 @@ class Braking:
         return lo
 
 
+class BrakingCache:
+    """``Braking`` objects for one ellipse, by curve and slope: a node whose ellipse, curve and
+    slope stay the same from one period to the next builds each once. A new ellipse (by
+    identity) starts afresh; at most ``size`` are kept. Keys that compare equal share an entry
+    (+0.0 and -0.0 give the same distances)."""
+
+    __slots__ = ("_by_key", "_ellipse", "size")
+
+    def __init__(self, size: int = 8) -> None:
+        self.size = size
+        self._ellipse: Ellipse | None = None
+        self._by_key: dict[tuple[float, float, float], Braking] = {}
+
+    def get(self, ellipse: Ellipse, curvature_1pm: float, grade_rad: float,
+            roll_rad: float) -> Braking:
+        if ellipse is not self._ellipse:
+            self._ellipse = ellipse
+            self._by_key.clear()
+        key = (curvature_1pm, grade_rad, roll_rad)
+        braking = self._by_key.get(key)
+        if braking is None:
+            if len(self._by_key) >= self.size:
+                self._by_key.clear()
+            braking = self._by_key[key] = Braking(ellipse, curvature_1pm, grade_rad, roll_rad)
+        return braking
+
+
 def braking_distance_m(e: Ellipse, speed_mps: float, curvature_1pm: float = 0.0,
                        grade_rad: float = 0.0, roll_rad: float = 0.0) -> float:
     """Distance to stop from ``speed_mps`` using the whole ellipse, the curve held throughout.

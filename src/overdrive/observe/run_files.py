@@ -8,11 +8,12 @@ one line) instead of a traceback after the run. ``finite_json`` writes ``summary
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from overdrive.scenario.safe_yaml import one_line
 
@@ -54,3 +55,23 @@ def finite_only(value: Any) -> Any:
 def finite_json(value: Any) -> str:
     """Indented JSON text of ``value`` (ends in a newline); non-finite numbers become null."""
     return json.dumps(finite_only(value), indent=2, allow_nan=False) + "\n"
+
+
+def open_trace(stack: contextlib.ExitStack, out_path: Path | None) -> TextIO | None:
+    """Create the run folder ``out_path`` and open its ``trace.csv`` on ``stack`` (None when the
+    run keeps no folder): the first half of every runner's folder (sim, drive, launch)."""
+    if out_path is None:
+        return None
+    out_path.mkdir(parents=True, exist_ok=True)
+    return stack.enter_context(open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
+
+
+def write_summary(out_path: Path | None, summary: dict[str, Any], *, plot: bool) -> None:
+    """The second half: ``summary.json`` and, when asked, ``plot.png`` from ``trace.csv``."""
+    if out_path is None:
+        return
+    (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
+    if plot:
+        from overdrive.observe.plot import plot_run
+
+        plot_run(out_path / "trace.csv", out_path / "plot.png", summary)

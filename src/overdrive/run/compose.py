@@ -27,9 +27,10 @@ from overdrive.scenario.schema import (
     Scenario,
     ScenarioError,
 )
-from overdrive.servers.driving import DrivingModule
+from overdrive.servers.driving import DrivingConfig, DrivingModule
 from overdrive.servers.move import MoveServer, MoveServerConfig
-from overdrive.servers.speed import SpeedServer
+from overdrive.servers.move_radar import RadarConfig
+from overdrive.servers.speed import SpeedServer, SpeedServerConfig
 from overdrive.vehicle.plain_jaus import JausProfile
 from overdrive.vehicle.sim_node import VehicleSim
 from overdrive.vehicle.xgv import XgvSimulator
@@ -49,21 +50,37 @@ def build_nodes(scenario: Scenario) -> list[Node]:
         raise ScenarioError(scenario.source, "events",
                             "set_speed makes the scenario the speed server's client; it cannot be "
                             "mixed with move/advance/max_speed/steer, whose client is the driving module")
-    params = scenario.vehicle
+    if spec.interface == "jaus" or spec.control == "motion-profile":
+        # the simulated XGV and the stack's JAUS client stand where VehicleSim stands
+        return lockstep_nodes(scenario, build_servers(scenario, over_jaus=True))
+    vehicle = VehicleSim(scenario.vehicle, world_from_spec(spec.world), spec.seed,
+                         ready=spec.start == "ready")
+    return [vehicle, *build_servers(scenario, over_jaus=False)]
+
+
+def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
+    """The scenario player and the servers its events need, in tick order.
+
+    ``over_jaus``: the vehicle is an XGV (or a plain JAUS 3.3 vehicle). JAUS 3.3 reports the
+    wrench *efforts* (under motion profile the XGV's own loops set them), not actuator positions,
+    so the servers are built without actuator monitoring (residual hazards H11, H14); nor has an
+    XGV the collision radar, so the move server is built with none fitted (H22: over JAUS the
+    planner owns the clearance ahead).
+    """
+    spec, kinds, params = scenario.spec, scenario.event_kinds, scenario.vehicle
     ready = spec.start == "ready"
-    nodes: list[Node] = [VehicleSim(params, world_from_spec(spec.world), spec.seed, ready=ready),
-                         ScenarioPlayer(scenario)]
+    monitor = not over_jaus
+    nodes: list[Node] = [ScenarioPlayer(scenario)]
     if kinds & MOVE_KINDS:
-        nodes.append(MoveServer(params, config=MoveServerConfig(friction=spec.world.friction)))
+        nodes.append(MoveServer(params, config=MoveServerConfig(
+            friction=spec.world.friction, radar=RadarConfig(fitted=not over_jaus))))
     if kinds & (DRIVING_KINDS | MOVE_KINDS):
-        nodes.append(DrivingModule(params, friction=spec.world.friction))
+        nodes.append(DrivingModule(params, config=DrivingConfig(monitor_actuators=monitor),
+                                   friction=spec.world.friction))
     if kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS):
         nodes.append(SpeedServer(params, initial_state="run" if ready else "parked",
-                                 initial_gear=params.drive_gear if ready else None))
-    if spec.interface == "jaus" or spec.control == "motion-profile":
-        # the simulated XGV and the stack's JAUS client stand where VehicleSim stands (actuator
-        # monitoring is off over JAUS: without_actuator_monitoring)
-        return lockstep_nodes(scenario, nodes[1:])
+                                 initial_gear=params.drive_gear if ready else None,
+                                 config=SpeedServerConfig(monitor_actuators=monitor)))
     return nodes
 
 
@@ -77,19 +94,14 @@ def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
     return found
 
 
-def without_actuator_monitoring(servers: Sequence[Any]) -> None:
-    """JAUS 3.3 reports the wrench *efforts* (and under motion profile the XGV's own loops set
-    them), not actuator positions: the servers' actuator monitoring (issue 16) has nothing to
-    compare its commands with over JAUS, so it is switched off (a residual hazard: H11, H14).
-    Nor does an XGV have the collision radar: the move server's radar health check (issue 16)
-    would hold a vehicle that has none, so it is told none is fitted (H22: over JAUS the planner
-    owns the clearance ahead)."""
+def _check_built_for_jaus(servers: Sequence[Any]) -> None:
+    """Servers for a JAUS vehicle are built by ``build_servers(..., over_jaus=True)``."""
     for node in servers:
-        if hasattr(node, "monitor_actuators"):
-            node.monitor_actuators = False
-        corridor = getattr(node, "corridor", None)
-        if corridor is not None:
-            corridor.fitted = False
+        if getattr(node, "monitor_actuators", False) or getattr(
+                getattr(node, "corridor", None), "fitted", False):
+            raise ValueError(f"{getattr(node, 'name', node)}: built for a vehicle that reports "
+                             "actuator positions and has a radar; over JAUS build the servers "
+                             "with build_servers(scenario, over_jaus=True)")
 
 
 def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
@@ -104,7 +116,7 @@ def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
     control = "motion-profile" if spec.control == "motion-profile" else "wrench"
     client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, profile=profile))
     port = ClientPort(link)
-    without_actuator_monitoring(servers)
+    _check_built_for_jaus(servers)
     return [XgvSimNode(simulator, link), XgvSensorNode(client, port), *servers,
             XgvCommandNode(client, port)]
 
@@ -117,7 +129,7 @@ def drive_nodes(scenario: Scenario, servers: Sequence[Any], remote: Address,
     client = XgvClient(scenario.vehicle, XgvClientConfig(control=control, publish_truth=True,
                                                          accel_filter_s=0.05, profile=profile))
     port = ClientPort(UdpPort(remote, bind))
-    without_actuator_monitoring(servers)
+    _check_built_for_jaus(servers)
     return [XgvSensorNode(client, port), *servers, XgvCommandNode(client, port)]
 
 

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-import msgspec
-
-from overdrive.run.compose import build_nodes, drive_nodes
+from overdrive.run.compose import build_servers, drive_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.runtime.xgv_link import Address
 from overdrive.scenario.schema import Scenario
@@ -29,9 +27,7 @@ def run_drive(scenario: Scenario, remote: Address, out_dir: Any = None, *,
     same, its trace and final state taken from the XGV's reports. Safety-device and world
     events are physical: the XGV (or ``overdrive xgv-sim --scenario``) plays them, not the stack.
     """
-    embedded = msgspec.structs.replace(scenario, spec=msgspec.structs.replace(
-        scenario.spec, interface="embedded", control="wrench"))
-    servers = build_nodes(embedded)[1:]
+    servers = build_servers(scenario, over_jaus=True)
     return run_scenario(scenario, out_dir, realtime=True, plot=plot, keep_trace=keep_trace,
                         nodes=drive_nodes(scenario, servers, remote, bind, profile),
                         position_noise_m=REPORTED_POSE_BOUND_M)

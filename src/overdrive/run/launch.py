@@ -54,7 +54,7 @@ from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus,
 from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.observe.judge import DELIVERED_TOPICS
 from overdrive.observe.recorder import Recorder
-from overdrive.observe.run_files import finite_json
+from overdrive.observe.run_files import open_trace, write_summary
 from overdrive.run.compose import build_nodes
 from overdrive.run.sim import add_judgement, make_monitor, make_summary
 from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, Node
@@ -739,11 +739,7 @@ class Launch:
         self.bus.channel = faults
         out_path = self.out_dir
         with contextlib.ExitStack() as stack:
-            trace_file = None
-            if out_path is not None:
-                out_path.mkdir(parents=True, exist_ok=True)
-                trace_file = stack.enter_context(
-                    open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
+            trace_file = open_trace(stack, out_path)
             recorder = self.recorder = Recorder(trace_file, keep_rows=False)
             monitor = make_monitor(scenario, DEFAULT_PERIOD_S)
             self.bus.tap(recorder.observe)
@@ -807,12 +803,7 @@ class Launch:
         }
         self.close()
         exit_code = 1 if summary["violations"] else 0
-        if out_path is not None:
-            (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
-            if self.plot:
-                from overdrive.observe.plot import plot_run
-
-                plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
+        write_summary(out_path, summary, plot=self.plot)
         return LaunchResult(summary, exit_code, out_path, reports)
 
     def stop(self) -> dict[str, dict[str, Any]]:

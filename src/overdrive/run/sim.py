@@ -19,7 +19,7 @@ from overdrive.messages import Topic
 from overdrive.observe.judge import DELIVERED_TOPICS, Monitor
 from overdrive.observe.provenance import code_provenance, run_provenance
 from overdrive.observe.recorder import Recorder
-from overdrive.observe.run_files import finite_json
+from overdrive.observe.run_files import open_trace, write_summary
 from overdrive.run.compose import build_nodes
 from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, LockstepRuntime, Node
 from overdrive.scenario.expect import check
@@ -63,11 +63,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     bus.channel = faults
     out_path = Path(out_dir) if out_dir is not None else None
     with contextlib.ExitStack() as stack:
-        trace_file = None
-        if out_path is not None:
-            out_path.mkdir(parents=True, exist_ok=True)
-            trace_file = stack.enter_context(
-                open(out_path / "trace.csv", "w", encoding="utf-8", newline=""))
+        trace_file = open_trace(stack, out_path)
         taps = list(observers)
         mcap = None
         if out_path is not None and record_mcap:
@@ -109,11 +105,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
                            monitor.finish(), faults.counts)
     add_judgement(summary, monitor)
     exit_code = 1 if summary["violations"] else 0
-    if out_path is not None:
-        (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
-        if plot:
-            from overdrive.observe.plot import plot_run
-            plot_run(out_path / "trace.csv", out_path / "plot.png", summary)
+    write_summary(out_path, summary, plot=plot)
     return RunResult(summary=summary, exit_code=exit_code, out_dir=out_path,
                      trace=recorder.rows, nodes={n.name: n for n in nodes})
 

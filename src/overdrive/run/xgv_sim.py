@@ -19,7 +19,6 @@ therefore costs the controller at most one tick.
 from __future__ import annotations
 
 import select
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -28,6 +27,7 @@ from typing import Final
 from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus.judp import JUDP_PORT
 from overdrive.messages import Topic
+from overdrive.runtime.udp import open_udp
 from overdrive.scenario.player import ScenarioPlayer, world_from_spec
 from overdrive.scenario.schema import Scenario
 from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
@@ -95,14 +95,7 @@ class XgvServer:
             params, world_from_spec(spec.world) if spec is not None else None,
             spec.seed if spec is not None else 1, ready=spec is not None and spec.start == "ready")
         self.player = ScenarioPlayer(scenario) if scenario is not None else None
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_QUEUE_BYTES)
-            self.sock.bind((host, port))
-            self.sock.setblocking(False)
-        except OSError:
-            self.sock.close()
-            raise
+        self.sock = open_udp((host, port), receive_buffer_bytes=RECEIVE_QUEUE_BYTES)
         self._stop = threading.Event()
         self.send_errors = 0
         self.admission = Admission()   # per-tick input bounds; .dropped counts the excess

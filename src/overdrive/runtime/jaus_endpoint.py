@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import logging
 import queue
-import socket
 import threading
 from collections.abc import Callable, Iterable
 from typing import Any, Final, NamedTuple
@@ -27,6 +26,7 @@ import msgspec
 from overdrive.jaus.addresses import JausId
 from overdrive.jaus.codec import Header, JausDecodeError, Message
 from overdrive.jaus.judp import JUDP_PORT, datagrams, decode_datagram
+from overdrive.runtime.udp import open_udp
 
 _log = logging.getLogger(__name__)
 
@@ -92,13 +92,7 @@ class JudpEndpoint:
         ``default_peer`` receives messages whose destination has no learned or added address.
         ``poll_interval_s`` bounds how long :meth:`close` waits for the receive thread.
         """
-        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            self._sock.bind((host, port))
-            self._sock.settimeout(poll_interval_s)
-        except OSError:
-            self._sock.close()
-            raise
+        self._sock = open_udp((host, port), timeout_s=poll_interval_s)
         self._default_peer = default_peer
         self._reply_port = reply_port
         self._lock = threading.Lock()

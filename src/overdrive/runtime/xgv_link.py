@@ -31,11 +31,11 @@ from typing import Any, Final, Literal
 
 from overdrive.bus.faults import ChannelFaults, Window
 from overdrive.messages import Topic
+from overdrive.runtime.udp import Address, open_udp
 from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
 from overdrive.vehicle.xgv import XgvSimulator
 from overdrive.vehicle.xgv_client import XgvClient
 
-Address = tuple[str, int]
 LOOPBACK: Final = "127.0.0.1"
 DELIVERY_TIMEOUT_S: Final = 1.0      # a loopback datagram not there after this is lost
 RECEIVE_BUFFER: Final = 65535        # above the JUDP maximum, so oversized datagrams are seen
@@ -71,11 +71,8 @@ class LoopbackLink:
             raise RuntimeError("the JAUS link is closed")
         try:
             for side in _TO:
-                sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                sock = open_udp((LOOPBACK, 0), receive_buffer_bytes=SOCKET_BUFFER_BYTES)
                 self.sockets[side] = sock
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, SOCKET_BUFFER_BYTES)
-                sock.bind((LOOPBACK, 0))
-                sock.setblocking(False)
                 self.addresses[side] = sock.getsockname()[:2]
         except OSError:
             self.close()
@@ -155,14 +152,7 @@ class UdpPort:
         if self.sock is None:
             # a host name resolved once, so replies can be matched against the address
             self.remote = (socket.gethostbyname(self.remote[0]), self.remote[1])
-            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            try:
-                sock.bind(self.bind)
-                sock.setblocking(False)
-            except OSError:
-                sock.close()
-                raise
-            self.sock = sock
+            self.sock = open_udp(self.bind)
         return self.sock
 
     def send(self, data: bytes) -> None:

@@ -24,7 +24,7 @@ import msgspec
 from overdrive.dynamics.control import rate_limit
 from overdrive.dynamics.ellipse import (
     DEFAULT_ENVELOPE,
-    Braking,
+    BrakingCache,
     Ellipse,
     EnvelopeConfig,
     Longitudinal,
@@ -71,6 +71,8 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     """Tuning of the driving module; every default says where it comes from."""
 
     envelope: EnvelopeConfig = DEFAULT_ENVELOPE
+    monitor_actuators: bool = True     # False where the vehicle reports efforts, not positions
+                                       # (JAUS 3.3: the XGV's wrench efforts; hazards H11, H14)
     reaction_s: float = 0.7            # speed-server latency allowance: SPSS period 0.1 + reference
                                        # ease-in 0.3 + brake lag 0.08 + loop, with margin (measured)
     plan_decel_fraction: float = 0.6   # the braking curve uses this share of the ellipse's A'
@@ -470,14 +472,14 @@ class DrivingModule:
         self._lateral: tuple[Any, ...] = ()        # (cap_ell, k_req, k_cmd, grade, roll, v_lat)
         self._safe_speeds: dict[tuple[float, ...], float] = {}   # see _safe_speed_mps
         self._safe_plan: Ellipse | None = None                    # ... the ellipse they are for
-        self._brakings: dict[tuple[float, ...], Braking] = {}     # see _braking
+        self._brakings = BrakingCache()
         # actuator monitoring (issue 16, safety.actuators): stuck road wheels stop the vehicle
         self.steer_monitor = SteeringMonitor(params)
         self.steer_status: VehicleStatus | None = None
         self.yaw_rate_rps: float | None = None
         self.steer_sent_pct: float | None = None
         self.steering_stuck = False     # latched: the vehicle stops and stays stopped
-        self.monitor_actuators = True   # False where the status reports efforts, not positions
+        self.monitor_actuators = cfg.monitor_actuators
         self._inputs[Topic.IMU] = self._imu
 
     # ------------------------------------------------------------------ inputs
@@ -852,29 +854,18 @@ class DrivingModule:
         if plan is not self._safe_plan:
             self._safe_plan = plan
             self._safe_speeds.clear()
-            self._brakings.clear()
         key = (distance_m, k_req, k_cmd, grade, roll)
         v = self._safe_speeds.get(key)
         if v is not None:
             return v
-        v = self._braking(plan, k_req, grade, roll).max_safe_speed_mps(distance_m, reaction_s)
+        v = self._brakings.get(plan, k_req, grade, roll).max_safe_speed_mps(distance_m, reaction_s)
         if k_cmd != k_req:
-            v = min(v, self._braking(plan, k_cmd, grade, roll).max_safe_speed_mps(distance_m,
-                                                                                   reaction_s))
+            v = min(v, self._brakings.get(plan, k_cmd, grade, roll).max_safe_speed_mps(
+                distance_m, reaction_s))
         if len(self._safe_speeds) >= 8:
             self._safe_speeds.clear()
         self._safe_speeds[key] = v
         return v
-
-    def _braking(self, plan: Ellipse, k: float, grade: float, roll: float) -> Braking:
-        """``Braking`` in ``plan`` (``_safe_plan``) for a curve and slope, kept while they last."""
-        key = (k, grade, roll)
-        braking = self._brakings.get(key)
-        if braking is None:
-            if len(self._brakings) >= 8:
-                self._brakings.clear()
-            braking = self._brakings[key] = Braking(plan, k, grade, roll)
-        return braking
 
     def _gear_cap(self, gear_name: str) -> float:
         try:

@@ -54,7 +54,7 @@ import msgspec
 
 from overdrive.dynamics.ellipse import (
     DEFAULT_ENVELOPE,
-    Braking,
+    BrakingCache,
     Ellipse,
     EnvelopeConfig,
     ellipse_for,
@@ -85,6 +85,7 @@ from overdrive.messages import (
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
+from overdrive.servers.dispatch import TypeDispatch
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
@@ -238,12 +239,15 @@ class MoveServer:
         self.remaining_m = 0.0
         self._sensor_rejection = ""
         self._brake_ell_cache: tuple[float, Ellipse, Ellipse] | None = None
-        self._brakings: dict[tuple[float, ...], Braking] = {}   # see _braking
-        self._brakings_ell: Ellipse | None = None
+        self._brakings = BrakingCache()
         self._brake_ell = self._brake_ellipse()    # _brake_ellipse() of the current period
         self._lateral_key: tuple[Any, ...] | None = None   # last lateral_speed_limit_mps call
         self._lateral_mps = math.inf
-        self._handlers: dict[type, Any] = {}   # message type -> _receive handler
+        self._dispatch = TypeDispatch(   # every input but MOVE commands, by its type
+            ((GpsIns, self._gps), (Imu, self._imu), (Radar, self._radar),
+             (VehicleStatus, self._status), (WheelSpeed, self._wheel),
+             (SpeedState, self._speed_state), (DrivingStatus, self._driving),
+             (SteerCommand, self._steer_cmd)), self._ignore)
 
     # ------------------------------------------------------------------ helpers
 
@@ -310,17 +314,6 @@ class MoveServer:
                                              reason=reason)))
         return False
 
-    def _handler_for(self, cls: type) -> Any:
-        """The input handler for messages of type ``cls`` (the first base class it derives from):
-        ``step`` dispatches every input but MOVE commands by its type."""
-        for base, handler in ((GpsIns, self._gps), (Imu, self._imu), (Radar, self._radar),
-                              (VehicleStatus, self._status), (WheelSpeed, self._wheel),
-                              (SpeedState, self._speed_state), (DrivingStatus, self._driving),
-                              (SteerCommand, self._steer_cmd)):
-            if issubclass(cls, base):
-                return handler
-        return self._ignore
-
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
         if finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.odometer_m, msg.pitch_rad,
                   msg.roll_rad):
@@ -376,16 +369,12 @@ class MoveServer:
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         out: list[tuple[str, Any]] = []
         commands: list[Any] = []
-        handlers = self._handlers
+        dispatch = self._dispatch
         for topic, msg in inbox:
             if topic == Topic.MOVE_COMMAND:
                 commands.append(msg)
                 continue
-            cls = type(msg)
-            handler = handlers.get(cls)
-            if handler is None:
-                handler = handlers[cls] = self._handler_for(cls)
-            handler(now_s, msg, out)
+            dispatch(now_s, msg, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         cfg = self.config
@@ -670,10 +659,10 @@ class MoveServer:
         ell = self._brake_ell
         k = self.driving.curvature_1pm if self.driving is not None else self.curvature_1pm
         speed = max(v, self.corridor.closing_mps, 0.0)   # the radar's own closing speed too
-        braking = self._braking(ell, k, grade, roll).stopping_distance_m(speed,
+        braking = self._brakings.get(ell, k, grade, roll).stopping_distance_m(speed,
                                                                           cfg.estop_reaction_s)
         if not math.isfinite(braking):
-            braking = self._braking(ell, 0.0, grade, roll).stopping_distance_m(
+            braking = self._brakings.get(ell, 0.0, grade, roll).stopping_distance_m(
                 speed, cfg.estop_reaction_s)
         reach = braking + cfg.estop_margin_m
         if target_m >= reach:
@@ -686,20 +675,6 @@ class MoveServer:
         out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code="radar",
                                          reason=self.estop_reason)))
         return True
-
-    def _braking(self, ell: Ellipse, k: float, grade: float, roll: float) -> Braking:
-        """``Braking`` for ``stopping_distance_m`` in ``ell``, kept while ellipse, curve and slope
-        stay the same (a +0.0 and a -0.0 input give the same distances)."""
-        if ell is not self._brakings_ell:
-            self._brakings_ell = ell
-            self._brakings.clear()
-        key = (k, grade, roll)
-        braking = self._brakings.get(key)
-        if braking is None:
-            if len(self._brakings) >= 8:
-                self._brakings.clear()
-            braking = self._brakings[key] = Braking(ell, k, grade, roll)
-        return braking
 
     def _limits(self, now_s: float, out: list) -> None:
         """Speed limit for the driving module: command, reductions, adaptive caps."""

@@ -64,6 +64,8 @@ class RadarFault(enum.IntEnum):
 class RadarConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
     """Tuning of the corridor; every default says where it comes from."""
 
+    fitted: bool = True                 # False: the vehicle has no radar (an XGV over JAUS: the
+                                        # planner owns the clearance ahead, hazard H22)
     corridor_margin_m: float = 0.3      # each side: GPS/INS 0.02 m + path tracking at turn-in
                                         # (steering lag), ~15 % of the vehicles' half width
     timeout_s: float = 0.2              # same as the GPS/INS timeout: 3 VORAD cycles (~15 Hz)
@@ -151,7 +153,7 @@ class RadarCorridor:
     def __init__(self, params: VehicleParams, config: RadarConfig | None = None) -> None:
         self.params = params
         self.config = cfg = config or RadarConfig()
-        self.fitted = True   # False: the vehicle has no radar (an XGV over JAUS): no health faults
+        self.fitted = cfg.fitted   # no radar: no health faults
         self.front_m = params.length_m - params.rear_overhang_m   # rear axle -> front bumper
         self.half_width_m = 0.5 * params.width_m
         # remembered world points: x, y, readings merged, and the progress at which the front

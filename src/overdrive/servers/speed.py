@@ -55,6 +55,7 @@ from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
+from overdrive.servers.dispatch import TypeDispatch
 from overdrive.servers.speed_hints import HintConfig, HintInputs, HintMonitor
 from overdrive.servers.speed_table import (
     CLIENT_FAULT_MAX,
@@ -88,6 +89,8 @@ docs/multiprocess.md); further ahead, its clock is not ours and it is timed from
 class SpeedServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     """Timings, thresholds and gains of the speed server; defaults are the seed's values."""
 
+    monitor_actuators: bool = True       # False where the vehicle reports efforts, not positions
+                                         # (JAUS 3.3: the XGV's wrench efforts; hazards H11, H14)
     spss_timeout_s: float = 0.2          # seed 001: "Failure to send one for 200ms ... emergency stop"
     sensor_timeout_s: float = 0.2        # same budget for vehicle status and speed (engineering choice)
     runwait_s: float = 5.0               # seed 001: "five second DARPA-required safety delay"
@@ -134,7 +137,9 @@ class SpeedServer:
         self.gears = GearTable(params)
         self._start_timeout_s = params.crank_time_s + cfg.start_timeout_margin_s
         self._shift_timeout_s = params.shift_time_s + cfg.shift_timeout_margin_s
-        self._handlers: dict[type, Any] = {}   # message type -> _read_inputs handler
+        self._dispatch = TypeDispatch(   # every input but SPSS, by its type
+            ((VehicleStatus, self._status_input), (GpsIns, self._gps_input),
+             (WheelSpeed, self._wheel_input), (Imu, self._imu_input)), self._ignore_input)
         self.neutral_gear = next(
             (g.name for g in params.gears if g.direction == 0 and not g.holds), params.park_gear)
         self.controller = LongitudinalController(params, cfg.gains or gains_for(params),
@@ -189,7 +194,7 @@ class SpeedServer:
         # follow cuts the engine for good (engine_cut) under a latched emergency stop
         self.actuator_monitor = PedalMonitor(params)
         self.engine_cut = False
-        self.monitor_actuators = True   # False where the status reports efforts, not positions
+        self.monitor_actuators = cfg.monitor_actuators
         # direction hold (issue 16): hill-start hold, rollback catch, rollback faults
         self.direction_hold = DirectionHold(params, cfg.direction_hold)
         self.hold_command: HoldCommand | None = None   # this period's, for its notices
@@ -255,27 +260,15 @@ class SpeedServer:
     def _read_inputs(self, now_s: float, inbox: Sequence[tuple[str, Any]],
                      out: list) -> list[tuple[SetSpeed, float]]:
         requests: list[tuple[SetSpeed, float]] = []
-        handlers = self._handlers
+        dispatch = self._dispatch
         for envelope in inbox:
             topic, msg = envelope
             if topic == Topic.SET_SPEED and isinstance(msg, SetSpeed):
                 sent_s = getattr(envelope, "sent_s", now_s)   # stamped across processes
                 requests.append((msg, sent_s if math.isfinite(sent_s) else now_s))
                 continue
-            cls = type(msg)
-            handler = handlers.get(cls)
-            if handler is None:
-                handler = handlers[cls] = self._handler_for(cls)
-            handler(now_s, msg, out)
+            dispatch(now_s, msg, out)
         return requests
-
-    def _handler_for(self, cls: type) -> Any:
-        """The input handler for messages of type ``cls`` (the first base class it derives from)."""
-        for base, handler in ((VehicleStatus, self._status_input), (GpsIns, self._gps_input),
-                              (WheelSpeed, self._wheel_input), (Imu, self._imu_input)):
-            if issubclass(cls, base):
-                return handler
-        return self._ignore_input
 
     def _status_input(self, now_s: float, msg: VehicleStatus, out: list) -> None:
         if self._accept_input(finite(msg.engine_rpm, msg.throttle_pct, msg.brake_pct),
