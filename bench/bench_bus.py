@@ -54,7 +54,7 @@ def _pct(values: list[float], q: float) -> float:
 
 
 def _port() -> int:
-    from overdrive.run.launch import free_port
+    from overdrive.runtime.ports import free_port
 
     return free_port()
 

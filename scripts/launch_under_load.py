@@ -21,7 +21,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from overdrive.run.launch import free_port
+from overdrive.runtime.ports import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent

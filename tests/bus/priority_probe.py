@@ -6,7 +6,7 @@ import os
 import subprocess
 import sys
 
-from overdrive.run.launch import NODE_RT_PRIORITY, RUN_NICE
+from overdrive.runtime.scheduling import NODE_RT_PRIORITY, RUN_NICE
 
 
 def _permitted(code: str) -> bool:

@@ -11,7 +11,7 @@ import zenoh
 
 from overdrive.bus.zenoh_bus import PUBLISHERS, ZenohBus, session_config
 from overdrive.messages import Notice, SetSpeed, Topic, VehicleStatus
-from overdrive.run.launch import free_port
+from overdrive.runtime.ports import free_port
 from tests.bus.waits import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]

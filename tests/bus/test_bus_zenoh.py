@@ -23,7 +23,8 @@ from overdrive.bus.zenoh_bus import (
     session_config,
 )
 from overdrive.messages import SCHEMA_VERSION, Notice, PedalCommand, SetSpeed, Topic, WheelSpeed
-from overdrive.run.launch import free_port, stack_registry
+from overdrive.run.launch import stack_registry
+from overdrive.runtime.ports import free_port
 from tests.bus.waits import LOADED_TIMEOUT_S, wait_for
 
 pytestmark = pytest.mark.wallclock   # real sessions and threads: run serially (Makefile)

@@ -17,8 +17,9 @@ from pathlib import Path
 import pytest
 
 from overdrive.messages import Topic
-from overdrive.run.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, free_port, launch_scenario
+from overdrive.run.launch import VEHICLE_COMMAND_TIMEOUT_S, Launch, launch_scenario
 from overdrive.run.sim import run_scenario
+from overdrive.runtime.ports import free_port
 from overdrive.scenario.schema import Scenario, load_scenario, parse_scenario
 from tests.bus.conftest import as_stranger, check_undisturbed, retry_when_stalled
 from tests.bus.priority_probe import EXPECTED as EXPECTED_SCHEDULING

@@ -18,8 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.run.launch import Launch, free_port
+from overdrive.run.launch import Launch
 from overdrive.run.sim import run_scenario
+from overdrive.runtime.ports import free_port
 from overdrive.scenario.schema import parse_scenario
 from tests.bus.conftest import HostStalled, as_stranger, check_undisturbed, retry_when_stalled
 from tests.bus.test_launch import FINAL_TOLERANCE_M, ROOT, _distance_m

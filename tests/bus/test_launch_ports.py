@@ -7,12 +7,12 @@ import socket
 
 import pytest
 
-from overdrive.run import launch
-from overdrive.run.launch import LISTEN_PORTS, _endpoint_port, free_ports
+from overdrive.runtime import ports as ports_mod
+from overdrive.runtime.ports import LISTEN_PORTS, endpoint_port, free_ports
 
 
 def test_ports_are_distinct_free_and_outside_the_ephemeral_range() -> None:
-    lo, hi = launch._ephemeral_range()
+    lo, hi = ports_mod.ephemeral_range()
     for _ in range(20):
         ports = free_ports(6)
         assert len(set(ports)) == 6
@@ -32,7 +32,7 @@ def test_a_port_in_use_or_reserved_is_never_picked(monkeypatch: pytest.MonkeyPat
         except OSError:
             pytest.skip(f"port {busy} or {busy + 2} is in use on this host")
         held.listen()
-        monkeypatch.setattr(launch, "LISTEN_PORTS", (busy, busy + 3))
+        monkeypatch.setattr(ports_mod, "LISTEN_PORTS", (busy, busy + 3))
         assert free_ports(1, taken=frozenset({busy + 1})) == [busy + 2]
         first, second = free_ports(2, taken=frozenset({busy + 1}))   # the window has one
         assert first == busy + 2 and second not in (busy, busy + 1, busy + 2)   # then bind(0)
@@ -40,11 +40,11 @@ def test_a_port_in_use_or_reserved_is_never_picked(monkeypatch: pytest.MonkeyPat
 
 def test_a_host_whose_ephemeral_range_covers_the_window_gets_bind_zero_ports(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(launch, "_ephemeral_range", lambda: (1024, 65535))
+    monkeypatch.setattr(ports_mod, "ephemeral_range", lambda: (1024, 65535))
     ports = free_ports(6)
     assert len(set(ports)) == 6 and all(1024 <= p <= 65535 for p in ports)
 
 
-def test_endpoint_port() -> None:
-    assert _endpoint_port("tcp/127.0.0.1:7447") == 7447
-    assert _endpoint_port("") is None and _endpoint_port("tcp/[::1]:x") is None
+def testendpoint_port() -> None:
+    assert endpoint_port("tcp/127.0.0.1:7447") == 7447
+    assert endpoint_port("") is None and endpoint_port("tcp/[::1]:x") is None

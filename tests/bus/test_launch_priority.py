@@ -16,7 +16,9 @@ from pathlib import Path
 import pytest
 
 from overdrive.run import launch as launch_mod
-from overdrive.run.launch import NODE_RT_PRIORITY, RUN_NICE, Launch, free_port
+from overdrive.run.launch import Launch
+from overdrive.runtime.ports import free_port
+from overdrive.runtime.scheduling import NODE_RT_PRIORITY, RUN_NICE
 from overdrive.scenario.schema import load_scenario
 from tests.bus.priority_probe import EXPECTED, NICE_PERMITTED, RT_PERMITTED, STARTED_NICE
 
@@ -45,8 +47,8 @@ def _child(body: str, timeout_s: float = 60) -> subprocess.CompletedProcess[str]
 def _priority_of_a_node(prelude: str = "", rt_priority: bool = True) -> str:
     """What a node process reports about all its threads once its session is open."""
     out = _child(prelude + f"""
-    from overdrive.run.launch import _node_child, node_priority, scheduling
-    _node_child()                       # as the launcher's preexec_fn
+    from overdrive.runtime.scheduling import node_child, node_priority, scheduling
+    node_child()                        # as the launcher's preexec_fn
     node_priority({rt_priority})           # as run_node, before its session
     """ + SESSION + """
     print(scheduling())
@@ -79,7 +81,7 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
     """RLIMIT_RTTIME: a thread spinning at FIFO priority would hold a CPU; the kernel ends it."""
     spinning = _child("""
         import time
-        from overdrive.run.launch import node_priority
+        from overdrive.runtime.scheduling import node_priority
         node_priority()
         end = time.monotonic() + 20
         while time.monotonic() < end:
@@ -89,7 +91,7 @@ def test_a_runaway_real_time_node_is_ended_by_the_kernel_a_stepping_one_is_not()
     assert spinning.returncode in (-signal.SIGXCPU, -signal.SIGKILL), (spinning.returncode, spinning.stdout)
     stepping = _child("""
         import time
-        from overdrive.run.launch import node_priority, scheduling
+        from overdrive.runtime.scheduling import node_priority, scheduling
         node_priority()
         for _ in range(300):            # 3 s of 10 ms steps, each 2 ms of work, then a sleep
             end = time.monotonic() + 0.002

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.run.launch import Launch, free_port
+from overdrive.run.launch import Launch
+from overdrive.runtime.ports import free_port
 from overdrive.scenario.schema import load_scenario
 
 pytestmark = pytest.mark.wallclock

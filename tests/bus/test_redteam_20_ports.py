@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 
-import overdrive.run.launch as launch
+from overdrive.runtime import ports as ports_mod
 
 
 @pytest.mark.parametrize("eph", [(20010, 65535), (20001, 60999), (20000, 32766), (1024, 65535)])
 def test_free_ports_finds_ports_whatever_the_ephemeral_range(monkeypatch, eph) -> None:
-    monkeypatch.setattr(launch, "_ephemeral_range", lambda: eph)
-    ports = launch.free_ports(5)      # a launch of four nodes and a gate
+    monkeypatch.setattr(ports_mod, "ephemeral_range", lambda: eph)
+    ports = ports_mod.free_ports(5)      # a launch of four nodes and a gate
     assert len(set(ports)) == 5

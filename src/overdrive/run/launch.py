@@ -27,9 +27,7 @@ import faulthandler
 import json
 import math
 import os
-import random
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -37,7 +35,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final
+from typing import Any
 
 import msgspec
 
@@ -58,6 +56,16 @@ from overdrive.observe.run_files import open_trace, write_summary
 from overdrive.run.compose import build_nodes
 from overdrive.run.sim import add_judgement, make_monitor, make_summary
 from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, Node
+from overdrive.runtime.ports import endpoint_port, free_ports
+from overdrive.runtime.processes import DUMP_SIGNAL, STOP_GRACE_S, StopFlag, stop_process_group
+from overdrive.runtime.scheduling import (
+    RUN_NICE,
+    die_with_parent,
+    node_child,
+    node_priority,
+    raise_priority,
+    scheduling,
+)
 from overdrive.runtime.wall import WallRuntime
 from overdrive.scenario.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.scenario.schema import Scenario, ScenarioError, parse_scenario
@@ -74,30 +82,10 @@ CLOCK_TOPIC = "launch/clock"
 CLOCK_PERIOD_S = 0.1            # a (re)started node waits at most this long for the epoch
 START_LEAD_S = 0.3              # epoch this far ahead of the first clock message: all nodes start at t=0
 READY_TIMEOUT_S = 20.0          # nodes must be up (liveliness) within this
-STOP_GRACE_S = 10.0             # SIGTERM -> SIGKILL of the process group (a loaded host needs time)
-DUMP_SIGNAL = signal.SIGUSR1    # a node still up after the grace dumps every thread's stack first
-DUMP_WAIT_S = 0.5               # (faulthandler: needs no GIL, so it works in a wedged process)
 JUDGE_LAG_S = 1.0
 """The monitor judges a multi-process run by the frames' send stamps, this far behind the wall
 clock: evidence still in flight on a loaded host has arrived by then, so a late delivery to the
 launcher is never taken for a late emergency stop (the last second of a run is not judged)."""
-RUN_NICE = -10
-"""Niceness of a run's processes where the OS permits raising it (root or CAP_SYS_NICE): on a
-busy host the CFS scheduler then gives a 10 ms control loop ~10x the share of a default-priority
-busy loop, so nodes are not starved into watchdog stops; without the permission, unchanged."""
-NODE_RT_PRIORITY = 10
-"""``SCHED_FIFO`` priority of a node's process (every thread) where the OS permits it (root,
-``CAP_SYS_NICE``, or ``RLIMIT_RTPRIO`` >= 10), as openpilot runs its control processes: a node that
-wakes for its step or a command runs at once instead of waiting for the CFS to pick it among busy
-processes (at nice -10, launches under two busy loops still saw nodes stalled 65-87 ms and watchdog
-stops). Low among real-time priorities, below the kernel's threaded interrupts (50). Set after the
-imports (start-up is a CPU burst that must not hold running nodes back: FIFO has no time slice)."""
-NODE_RT_CPU_LIMIT_S = (0.5, 1.0)
-"""``RLIMIT_RTTIME`` (soft, hard) of a real-time node: a thread that runs this long without
-blocking gets SIGXCPU, which ends the process (then SIGKILL at the hard limit); a node steps every
-10 ms for well under a millisecond and sleeps between steps, so only a runaway hits it. The
-kernel's real-time throttling alone would leave the rest of the host 5 % of a CPU meanwhile, and a
-dead node is what the watchdogs are for."""
 NODE_SPIN_S = 0.0                # no busy-wait in node processes: on a loaded host the CPU is
                                  # better left to the others (sleep overshoot ~0.1 ms << 10 ms)
 VEHICLE_COMMAND_TIMEOUT_S = COMMAND_TIMEOUT_S  # the vehicle brakes on pedal-command silence (VehicleSim)
@@ -137,58 +125,6 @@ def stack_registry() -> Registry:
         registry.register(cls)
     registry.register(LaunchClock, CLOCK_TOPIC)
     return registry
-
-
-LISTEN_PORTS: Final = (20000, 32768)
-"""Where listening ports are picked: below Linux's default ephemeral range (32768-60999), from
-which the kernel takes both ``bind(port 0)`` answers and the source ports of outgoing
-connections. A port picked there could be handed out twice, or taken by a peer's dial before
-the node binds it (seen under load: the speed node could not listen and the run failed)."""
-
-
-def _ephemeral_range() -> tuple[int, int]:
-    try:
-        lo, hi = Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()
-        return int(lo), int(hi)
-    except (OSError, ValueError):
-        return 32768, 60999
-
-
-WINDOW_TRIES: Final = 500   # random picks in LISTEN_PORTS before falling back to bind(0)
-
-
-def free_ports(count: int, taken: frozenset[int] = frozenset()) -> list[int]:
-    """``count`` distinct TCP ports free on 127.0.0.1 now: in ``LISTEN_PORTS`` outside the
-    ephemeral range, and where too few of those are free (a host whose ephemeral range covers
-    the window), distinct ports from ``bind(port 0)``."""
-    eph_lo, eph_hi = _ephemeral_range()
-    pick = random.SystemRandom()   # not the scenario's seeded RNG: ports never reach a trace
-    ports: list[int] = []
-    for attempt in range(WINDOW_TRIES + 2000):
-        in_window = attempt < WINDOW_TRIES
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            try:
-                s.bind(("127.0.0.1", pick.randrange(*LISTEN_PORTS) if in_window else 0))
-            except OSError:
-                continue
-            port = s.getsockname()[1]
-        if port in ports or port in taken or (in_window and eph_lo <= port <= eph_hi):
-            continue
-        ports.append(port)
-        if len(ports) == count:
-            return ports
-    raise RuntimeError(f"could not find {count} free TCP ports on 127.0.0.1")
-
-
-def _endpoint_port(endpoint: str) -> int | None:
-    """The port of a ``tcp/HOST:PORT`` endpoint, else None."""
-    _, _, port = (endpoint or "").rpartition(":")
-    return int(port) if port.isdigit() else None
-
-
-def free_port() -> int:
-    """A TCP port free on 127.0.0.1 now, outside the ephemeral range (``free_ports``)."""
-    return free_ports(1)[0]
 
 
 # --------------------------------------------------------------------------- nodes
@@ -242,21 +178,6 @@ def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
                 return msg
         time.sleep(0.005)
     return None
-
-
-class StopFlag:
-    """Set by a signal handler: a plain attribute, no lock. A ``threading.Event`` deadlocked a
-    node at stop: the launcher's second SIGTERM arrived while the first handler held the Event's
-    lock in ``set()``, and the second handler waited on it forever (faulthandler dump)."""
-
-    def __init__(self) -> None:
-        self.flag = False
-
-    def set(self) -> None:
-        self.flag = True
-
-    def is_set(self) -> bool:
-        return self.flag
 
 
 def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
@@ -327,78 +248,6 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
 
 
 # --------------------------------------------------------------------------- the launcher
-
-def raise_priority() -> int | None:
-    """Run this thread (and the threads it starts later) at ``RUN_NICE`` when the OS allows it;
-    the previous niceness, else None. On Linux niceness is per thread."""
-    try:
-        before = os.getpriority(os.PRIO_PROCESS, 0)
-        if before > RUN_NICE:
-            os.setpriority(os.PRIO_PROCESS, 0, RUN_NICE)
-        return before
-    except (OSError, AttributeError):   # not permitted (no CAP_SYS_NICE) or not POSIX: as is
-        return None
-
-
-def realtime_priority(priority: int = NODE_RT_PRIORITY) -> bool:
-    """Run this thread (and the threads it starts later: call it before any) ``SCHED_FIFO`` at
-    ``priority``, with ``NODE_RT_CPU_LIMIT_S``, where the OS permits it; True if it does."""
-    try:
-        import resource
-
-        resource.setrlimit(resource.RLIMIT_RTTIME,
-                           tuple(round(s * 1e6) for s in NODE_RT_CPU_LIMIT_S))
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (OSError, ValueError, AttributeError, ImportError):  # not permitted, or not Linux: as is
-        return False
-    return True
-
-
-def node_priority(rt_priority: bool = True) -> None:
-    """A node's priority: ``SCHED_FIFO`` if ``rt_priority`` and permitted, else ``RUN_NICE`` if
-    permitted, else as started."""
-    if not (rt_priority and realtime_priority()):
-        raise_priority()
-
-
-def scheduling() -> str:
-    """How the OS schedules this process's threads, for reports: ``fifo:10``,
-    ``other:nice=-10``, or several joined by ``,`` when the threads differ."""
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:
-        tids = [0]
-    seen = set()
-    for tid in tids:
-        try:
-            policy = os.sched_getscheduler(tid)
-            if policy in (os.SCHED_FIFO, os.SCHED_RR):
-                name = "fifo" if policy == os.SCHED_FIFO else "rr"
-                seen.add(f"{name}:{os.sched_getparam(tid).sched_priority}")
-            else:
-                seen.add(f"other:nice={os.getpriority(os.PRIO_PROCESS, tid)}")
-        except ProcessLookupError:    # a thread that ended meanwhile
-            continue
-        except (OSError, AttributeError):
-            seen.add("unknown")
-    return ",".join(sorted(seen))
-
-
-def _node_child() -> None:
-    """In a node's child process: ``RUN_NICE`` where permitted (the node goes real-time itself,
-    after its imports), die with the launcher."""
-    raise_priority()
-    _die_with_parent()
-
-
-def _die_with_parent() -> None:
-    """In the child: get SIGTERM when the launcher dies, even by SIGKILL (Linux)."""
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-
 
 class _ClockNode:
     """Launcher node: publishes the run's epoch every 100 ms and supervises the processes."""
@@ -478,7 +327,7 @@ class Launch:
         self.work_dir = work
         self.procs: dict[str, NodeProcess] = {}
         endpoints: list[str] = []
-        public = _endpoint_port(self.listen)
+        public = endpoint_port(self.listen)
         ports = free_ports(len(self.names) + 1, frozenset({public} if public else ()))
         for cli, port in zip(self.names, ports[:-1], strict=True):
             endpoint = f"tcp/127.0.0.1:{port}"
@@ -552,7 +401,7 @@ class Launch:
             proc.popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
                                           stderr=subprocess.STDOUT if self.node_log else None,
                                           env=env, start_new_session=True,
-                                          preexec_fn=_node_child)
+                                          preexec_fn=node_child)
         proc.starts += 1
         proc.expected_exit = False
         proc.restart_at_s = None
@@ -579,7 +428,7 @@ class Launch:
             self.gate = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=log,
                                          stderr=subprocess.STDOUT,
                                          env=env, start_new_session=True,
-                                         preexec_fn=_die_with_parent)
+                                         preexec_fn=die_with_parent)
 
     def access_report(self) -> dict[str, Any]:
         """What the run's access control refused: links without valid credentials (from the
@@ -645,25 +494,11 @@ class Launch:
                 self._event("process_restart", node=name, pid=proc.popen.pid if proc.popen else None)
 
     def _stop_proc(self, proc: NodeProcess, sig: int = signal.SIGTERM) -> None:
-        popen = proc.popen
-        if popen is None:
+        if proc.popen is None:
             return
         proc.expected_exit = True
-        if popen.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(popen.pid, sig)
-        try:
-            popen.wait(STOP_GRACE_S)
-        except subprocess.TimeoutExpired:
+        if stop_process_group(proc.popen, sig, STOP_GRACE_S):
             proc.killed_at_stop = True
-            with contextlib.suppress(ProcessLookupError):   # where it hangs, on its stderr
-                os.kill(popen.pid, DUMP_SIGNAL)
-                time.sleep(DUMP_WAIT_S)
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(popen.pid, signal.SIGKILL)
-            popen.wait(STOP_GRACE_S)
-        with contextlib.suppress(ProcessLookupError):   # stragglers in the group
-            os.killpg(popen.pid, signal.SIGKILL)
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -827,17 +662,8 @@ class Launch:
         return reports
 
     def _stop_gate(self, sig: int = signal.SIGTERM) -> None:
-        gate = self.gate
-        if gate is None:
-            return
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(gate.pid, sig)
-        try:
-            gate.wait(STOP_GRACE_S)
-        except subprocess.TimeoutExpired:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(gate.pid, signal.SIGKILL)
-            gate.wait(STOP_GRACE_S)
+        if self.gate is not None:
+            stop_process_group(self.gate, sig, STOP_GRACE_S, dump=False)
 
     def close(self) -> None:
         """Kill anything left, close the session and delete the run's credentials; safe to call
