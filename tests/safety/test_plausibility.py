@@ -236,3 +236,44 @@ def test_a_silent_source_is_not_live_and_gives_no_speed() -> None:
         bench.step()
     assert bench.node.speed_mps is None
     assert bench.codes() == [], "silence is the speed server's sensor timeout, not a plausibility fault"
+
+
+# --------------------------------------------------------------------------- coverage gate (issue 9)
+
+@pytest.mark.parametrize(("frozen", "untrusted"), [
+    ("gps_ins", "gps_ins"), ("wheel_speed", "wheel_speed"), ("imu", "imu"), (None, None)])
+def test_trusted_names_the_source_found_implausible(frozen: str | None,
+                                                    untrusted: str | None) -> None:
+    """One source repeats while the others show the vehicle accelerating: only it is untrusted."""
+    bench = Bench()
+    v = odo = 0.0
+    for _ in range(60):
+        v += 2.0 * DT
+        odo += v * DT
+        bench.step(gps(0.5, 0.0) if frozen == "gps_ins" else gps(v + bench.n(), odo, x=odo),
+                   WheelSpeed(speed_mps=0.5) if frozen == "wheel_speed"
+                   else WheelSpeed(speed_mps=v + bench.n()),
+                   imu(0.0) if frozen == "imu" else imu(2.0 + bench.n(0.05)))
+    for name in ("gps_ins", "wheel_speed", "imu"):
+        assert bench.node.trusted(name) is (name != untrusted)
+
+
+@pytest.mark.parametrize("engaged", [1, -1])
+@pytest.mark.parametrize(("gps_mps", "signed_by_speed"), [(CFG.sign_mps - 0.001, False),
+                                                          (CFG.sign_mps, True),
+                                                          (CFG.sign_mps + 0.001, True)])
+def test_a_step_without_a_direction_keeps_the_engaged_one(engaged: int, gps_mps: float,
+                                                          signed_by_speed: bool) -> None:
+    """Below sign_mps the GPS/INS speed's sign is noise: its path length is signed by the
+    direction last engaged, which a step with direction 0 does not change."""
+    bench = Bench()
+    odo = 0.0
+    bench.step(gps(gps_mps, odo), direction=-engaged)
+    bench.step(gps(gps_mps, odo, x=1.0), direction=engaged)
+    for _ in range(200):
+        odo += gps_mps * DT
+        bench.step(gps(gps_mps, odo, x=odo), direction=0)
+    sign = 1 if signed_by_speed else engaged
+    assert bench.node.progress_m(1) == pytest.approx(sign * odo, abs=1e-6)
+    assert bench.node.progress_m(-1) == pytest.approx(-sign * odo, abs=1e-6)
+    assert bench.codes() == []

@@ -39,6 +39,7 @@ class Driver:
         self.gear = self.params.gear(gear or self.params.drive_gear)
         self.hold = DirectionHold(self.params)
         self.faults: list[int] = []
+        self.messages: list[str] = []
         self.caught: list[str] = []
         self.last = None
 
@@ -52,6 +53,7 @@ class Driver:
                 source_speeds_mps=agreed)
             if cmd.fault is not None:
                 self.faults.append(cmd.fault[0])
+                self.messages.append(cmd.fault[1])
             if cmd.caught:
                 self.caught.append(cmd.caught)
         return self.hold.state
@@ -329,3 +331,40 @@ def test_a_retry_waits_for_full_drive_only_uphill(grade_pct: float, needs_full: 
     assert d.hold.state == "holding" and d.faults == []
     d.step(target=2.0, grade_pct=grade_pct, throttle=60.0)
     assert (d.hold.state == "holding") is needs_full
+
+
+# --------------------------------------------------------------------------- coverage gate (issue 9)
+
+@pytest.mark.parametrize(("periods", "fault"), [(round(CFG.hold_timeout_s / DT_S) - 1, False),
+                                                (round(CFG.hold_timeout_s / DT_S), True)])
+def test_a_throttle_that_stays_short_of_the_release_times_out(periods: int, fault: bool) -> None:
+    """A gear that could climb, a throttle that never opens enough: held, then a fault naming
+    the throttle (not the gear) after hold_timeout_s."""
+    d = Driver()
+    d.step(target=0.0)
+    d.step(target=2.0)                                   # launch: holding from here
+    short = d.release_throttle_pct(15.0) - 0.5
+    d.step(periods, target=2.0, throttle=short)
+    assert d.hold.state == ("failed" if fault else "holding")
+    assert d.faults == ([DirectionFault.CANNOT_HOLD_GRADE] if fault else [])
+    if fault:
+        assert f"the throttle stayed at {short:.0f} %" in d.messages[0]
+        assert "cannot beat the pull" not in d.messages[0]
+
+
+def test_a_timeout_says_why_the_hold_was_never_released() -> None:
+    # the gear's full drive is below the pull
+    d = Driver("ranger-6x6", "high")
+    d.step(target=0.0, grade_pct=30.0)
+    d.step(round(CFG.hold_timeout_s / DT_S) + 1, target=2.0, grade_pct=30.0, throttle=100.0)
+    assert d.faults == [DirectionFault.CANNOT_HOLD_GRADE]
+    assert "its full drive" in d.messages[0] and "cannot beat the pull" in d.messages[0]
+    # the gear already failed on this grade (a rollback at full drive): not tried again
+    d = Driver()
+    released(d)
+    d.step(CFG.rollback_periods, target=2.0, speed=-0.2, throttle=99.0)
+    d.step(round(CFG.settle_s / DT_S) + 1, target=2.0)
+    d.step(target=0.0)
+    d.step(round(CFG.hold_timeout_s / DT_S) + 1, target=2.0, throttle=100.0)
+    assert d.faults == [DirectionFault.ROLLBACK_AT_FULL_DRIVE, DirectionFault.CANNOT_HOLD_GRADE]
+    assert d.messages[1].endswith("it already failed on this grade in this gear; held, brakes on")
