@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import ast
 import itertools
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import NamedTuple
@@ -284,3 +285,24 @@ def test_one_module_opens_udp_sockets() -> None:
     opening = sorted(str(p.relative_to(SRC)) for p in SRC.rglob("*.py")
                      if "SOCK_DGRAM" in p.read_text(encoding="utf-8"))
     assert opening == ["runtime/udp.py"]
+
+
+def test_the_readme_layout_names_every_folder_and_module() -> None:
+    """The README's layout block matches the tree: every folder and module is named there."""
+    readme = (SRC.parents[1] / "README.md").read_text(encoding="utf-8")
+    block = readme[readme.index("## Layout"):]
+    block = block[:block.index("```", block.index("```") + 3)]
+    missing = []
+    for path in sorted(SRC.rglob("*.py")):
+        rel = path.relative_to(SRC)
+        if rel.name in ("__init__.py", "__main__.py"):
+            continue
+        if len(rel.parts) == 1:
+            name = rel.name
+        else:
+            name = rel.stem
+            if f"{rel.parts[0]}/" not in block:
+                missing.append(f"{rel.parts[0]}/")
+        if not re.search(rf"(?<![\w.]){re.escape(name)}(?![\w])", block):
+            missing.append(str(rel))
+    assert sorted(set(missing)) == []

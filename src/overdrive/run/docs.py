@@ -27,6 +27,7 @@ from typing import Any
 
 import msgspec
 
+import overdrive
 from overdrive import messages
 from overdrive.bus.delivery import CHAIN_TOPICS, COMMAND, delivery
 from overdrive.bus.local import LocalBus
@@ -344,6 +345,41 @@ def vehicle_bounds_table() -> str:
     return "\n".join(out) + "\n"
 
 
+def _docstring(path: Path) -> str:
+    """A module's docstring, read from its source (nothing imported: ``cli`` is above us)."""
+    return ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
+
+
+def package_layers() -> str:
+    """The layer diagram, the folder table and one paragraph per folder, from ``overdrive.LAYERS``
+    and each folder's ``__init__`` docstring."""
+    src = Path(overdrive.__file__).resolve().parent
+    width = max(len(" | ".join(layer)) for layer in overdrive.LAYERS)
+    diagram = []
+    for i, layer in enumerate(overdrive.LAYERS):
+        if i:
+            diagram.append("v".center(width))
+        diagram.append(" | ".join(layer).center(width))
+    out = ["Generated from `overdrive.LAYERS` and each folder's `__init__` docstring. Each layer "
+           "imports only from layers below it; folders on one layer do not import each other "
+           "(`tests/test_import_layers.py`).", "", "```", *[d.rstrip() for d in diagram], "```",
+           "", "| layer | folder | modules |", "|---|---|---|"]
+    paragraphs = []
+    for rank, layer in enumerate(overdrive.LAYERS):
+        number = len(overdrive.LAYERS) - rank
+        for name in layer:
+            folder = src / name
+            if folder.is_dir():
+                modules = sorted(p.stem for p in folder.glob("*.py") if p.stem != "__init__")
+                out.append(f"| {number} | `{name}/` | {', '.join(f'`{m}`' for m in modules)} |")
+                doc = _docstring(folder / "__init__.py")
+            else:
+                out.append(f"| {number} | `{name}.py` | |")
+                doc = _docstring(src / f"{name}.py")
+            paragraphs += [f"### `overdrive.{name}`", "", doc, ""]
+    return "\n".join([*out, "", *paragraphs]).rstrip() + "\n"
+
+
 def fill(text: str, name: str, content: str) -> str:
     """``text`` with the block between the ``name`` markers replaced by ``content``."""
     begin, end = BEGIN.format(name=name), END.format(name=name)
@@ -360,7 +396,8 @@ def generated(docs_dir: Path) -> dict[Path, str]:
              docs_dir / "state-machines.md": state_machines_md()}
     arch = docs_dir / "architecture.md"
     if arch.exists():
-        files[arch] = fill(arch.read_text(encoding="utf-8"), "topics", topics_table())
+        text = fill(arch.read_text(encoding="utf-8"), "topics", topics_table())
+        files[arch] = fill(text, "layers", package_layers())
     scenarios = docs_dir / "scenarios.md"
     if scenarios.exists():
         files[scenarios] = fill(scenarios.read_text(encoding="utf-8"), "vehicle-bounds",
