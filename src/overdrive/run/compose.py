@@ -8,6 +8,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, Literal
 
+import msgspec
+
 from overdrive.runtime.lockstep import Node
 from overdrive.runtime.xgv_link import (
     Address,
@@ -69,18 +71,21 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
     """
     spec, kinds, params = scenario.spec, scenario.event_kinds, scenario.vehicle
     ready = spec.start == "ready"
-    monitor = not over_jaus
     nodes: list[Node] = [ScenarioPlayer(scenario)]
+    # over JAUS the configurations differ from the defaults; elsewhere each server takes its own
+    # default (None), so a test that swaps a server's default configuration reaches it
     if kinds & MOVE_KINDS:
-        nodes.append(MoveServer(params, config=MoveServerConfig(
-            friction=spec.world.friction, radar=RadarConfig(fitted=not over_jaus))))
+        move = MoveServerConfig(friction=spec.world.friction)
+        if over_jaus:
+            move = msgspec.structs.replace(move, radar=RadarConfig(fitted=False))
+        nodes.append(MoveServer(params, config=move))
     if kinds & (DRIVING_KINDS | MOVE_KINDS):
-        nodes.append(DrivingModule(params, config=DrivingConfig(monitor_actuators=monitor),
-                                   friction=spec.world.friction))
+        driving = DrivingConfig(monitor_actuators=False) if over_jaus else None
+        nodes.append(DrivingModule(params, config=driving, friction=spec.world.friction))
     if kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS):
+        speed = SpeedServerConfig(monitor_actuators=False) if over_jaus else None
         nodes.append(SpeedServer(params, initial_state="run" if ready else "parked",
-                                 initial_gear=params.drive_gear if ready else None,
-                                 config=SpeedServerConfig(monitor_actuators=monitor)))
+                                 initial_gear=params.drive_gear if ready else None, config=speed))
     return nodes
 
 
