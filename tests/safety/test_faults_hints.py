@@ -19,6 +19,8 @@ from overdrive.servers import gear_hints
 from overdrive.servers.speed_hints import HintMonitor
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "faults" / "lugging-downshift.yaml"
 STEEP_RANGER = math.tan(0.5 * PRESETS["ranger-6x6"].max_pitch_rad) * 100.0   # 17.0 %: the

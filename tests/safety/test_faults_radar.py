@@ -18,6 +18,8 @@ from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.move_radar import RadarConfig, RadarFault
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 MARGIN_M = RadarConfig().corridor_margin_m
 NOISE_BAND_M = 0.1   # GPS/INS noise at the edge: 0.02 m per reading, pose and target: ~3.5 sigma
 SPEEDS_MPS = (2.0, 5.0, 8.0, 10.0)

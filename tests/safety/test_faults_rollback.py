@@ -34,6 +34,8 @@ from overdrive.servers.direction_hold import FREE, DirectionFault
 from overdrive.servers.move_radar import RadarConfig
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 FAULT_CODES = {str(int(c)) for c in DirectionFault}
 DISTANCE_M = 12.0
 REVERSE_MPS = 1.5   # move_radar's reverse_max_speed_mps (policy: no rear sensor)
