@@ -225,14 +225,14 @@ def test_healthy_runs_are_unchanged(monkeypatch, preset, grade_percent) -> None:
     assert heard.trace[-1] == unheard.trace[-1]
 
 
-# --------------------------------------------------------------------------- red team
+# --------------------------------------------------------------------------- around a downshift
 
 HILL = [(0.0, 0.0), (10.0, 15.0)]
 
 
 def run_events(vehicle: Any, grades: list[tuple[float, float]], events: list[dict],
                duration_s: float = 70.0, obstacles: list[dict] | None = None) -> Any:
-    data = {"name": "hints-redteam", "vehicle": vehicle, "start": "ready",
+    data = {"name": "hints-combined", "vehicle": vehicle, "start": "ready",
             "duration_s": duration_s,
             "world": {"friction": 0.8, "obstacles": obstacles or [], "grade_percent": [
                 {"from_m": f, "grade_percent": g} for f, g in grades]},
