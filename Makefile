@@ -102,9 +102,10 @@ test: check-env lint
 	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
 	@$(MAKE) --no-print-directory coverage-gate
 
-# Issue 16's whole-run variant sweeps in full (`make test` runs one case in four: tests/conftest.py).
+# The whole-run variant sweeps (tests marked `variants`) in full (`make test` runs one case in four:
+# tests/conftest.py).
 test-variants: $(STAMP)
-	OVERDRIVE_ALL_VARIANTS=1 $(PY) -m pytest -n 2 -p no:cacheprovider $(addprefix tests/safety/,test_faults_radar.py test_faults_rollback.py test_faults_actuators.py test_faults_hints.py test_faults_sense.py)
+	OVERDRIVE_ALL_VARIANTS=1 $(PY) -m pytest -n 2 -p no:cacheprovider -m variants
 
 interop: $(STAMP)
 	$(PY) -m pytest -p no:cacheprovider -m interop -rs

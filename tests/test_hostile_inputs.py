@@ -93,8 +93,8 @@ HOSTILE: dict[str, tuple[bytes, tuple[str, ...]]] = {
     "whole number as float": (_vehicle(start_failures=1.5), ("vehicle.start_failures:", "whole")),
 }
 
-RED_TEAM: dict[str, tuple[bytes, tuple[str, ...]]] = {
-    # inputs tried while attacking this change; "was:" what the code before it did
+LOADER_EDGES: dict[str, tuple[bytes, tuple[str, ...]]] = {
+    # inputs that once crashed or misled the loader ("was:" what the code did then)
     "5,000-digit integer": (b"name: t\nseed: " + b"1" * 5000 + b"\n",        # was: traceback
                             ("seed:", "a number of 5000 characters")),
     "13th month": (b"name: t\nduration_s: 2001-13-45\n",                    # was: traceback
@@ -161,9 +161,9 @@ def _write(tmp_path: Path, content: bytes) -> Path:
 
 
 @pytest.mark.wallclock
-@pytest.mark.parametrize("case", [*HOSTILE, *RED_TEAM])
+@pytest.mark.parametrize("case", [*HOSTILE, *LOADER_EDGES])
 def test_hostile_file_is_exit_2_with_one_line(tmp_path: Path, case: str) -> None:
-    content, needles = HOSTILE[case] if case in HOSTILE else RED_TEAM[case]
+    content, needles = HOSTILE[case] if case in HOSTILE else LOADER_EDGES[case]
     path = _write(tmp_path, content)
     result = overdrive("sim", str(path), "--out", str(tmp_path / "run"), "--quiet", cwd=tmp_path)
     assert_usage_error(result, f"{path}: ", *needles)

@@ -104,6 +104,20 @@ def test_not_a_mapping(tmp_path: Path) -> None:
     assert code == 2 and "mapping" in output
 
 
+@pytest.mark.parametrize("kind", ["advance", "max_speed"])
+def test_a_scenario_source_may_not_be_named_move(kind: str) -> None:
+    """``move`` is a reserved source name: a scenario naming an advance or a limit source so is
+    refused (exit 2) naming the field. The judge tells the move server's re-publications from
+    other sources by that name: an advance of 20 m from ``move`` drove the vehicle 19.8 m and the
+    judge reported "moved 19.801 m with no command" (a false alarm of rules 1-2), and an overrun
+    of it would not have been judged."""
+    body = {"source": "move", "distance_m": 20} if kind == "advance" else \
+        {"source": "move", "speed_mps": 2}
+    with pytest.raises(ScenarioError, match=rf"events\[0\]\.{kind}\.source: 'move' is reserved"):
+        parse_scenario(scenario_dict(start="ready", duration_s=15, world={},
+                                     events=[{"at_s": 0.5, kind: body}]))
+
+
 def test_events_sorted_by_time_stably() -> None:
     scenario = parse_scenario(scenario_dict(events=[
         {"at_s": 3, "engine": "off"}, {"at_s": 1, "engine": "on"}, {"at_s": 3, "gear": "drive"}]))

@@ -237,8 +237,8 @@ def test_no_python_runs_on_zenoh_threads_in_pull_mode(pair, monkeypatch) -> None
 
 
 def test_own_publications_are_checked_as_every_receiver_checks_them(pair) -> None:
-    """Red team (issue 20): a wrong-typed or oversized own publication was handed to the own
-    pull inbox although every receiver refuses it (topic_type, too_large)."""
+    """Found (issue 20): a wrong-typed or oversized own publication was handed to the own pull
+    inbox although every receiver refuses it (topic_type, too_large)."""
     launcher, _driving = pair
     own = launcher.subscribe([Topic.SET_SPEED, Topic.NOTICE])
     launcher.publish(Topic.SET_SPEED, WheelSpeed(speed_mps=9.0))                # not a SetSpeed
@@ -250,7 +250,7 @@ def test_own_publications_are_checked_as_every_receiver_checks_them(pair) -> Non
 
 
 def test_a_backlog_beyond_an_inbox_is_worked_off_over_steps_not_refused(pair) -> None:
-    """Red team (issue 20): one pump moved 4,096 queued commands into an inbox of 1,024 and
+    """Found (issue 20): one pump moved 4,096 queued commands into an inbox of 1,024 and
     refused the rest as overflow, though each step drains the inbox."""
     launcher, driving = pair
     inbox = launcher.subscribe([Topic.SET_SPEED])
@@ -275,7 +275,7 @@ events:
 
 
 def test_a_launcher_stall_is_not_judged_as_a_late_emergency_stop(tmp_path: Path) -> None:
-    """Red team (issue 20): the launcher's thread stalls 5 s (the nodes run on); the judge must
+    """Found (issue 20): the launcher's thread stalls 5 s (the nodes run on); the judge must
     see every SPSS sent meanwhile before it judges those seconds. With 4,096 samples a pump it
     judged after ~2.5 s of evidence: 'no SPSS delivered for 1654 ms', exit 1, no node e-stop."""
     from overdrive.run.launch import Launch

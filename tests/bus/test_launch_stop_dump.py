@@ -16,7 +16,7 @@ pytestmark = pytest.mark.wallclock   # real processes and signals
 
 WEDGED = textwrap.dedent("""
     import faulthandler, signal, sys, time
-    from overdrive.run.launch import DUMP_SIGNAL
+    from overdrive.runtime.processes import DUMP_SIGNAL
     signal.signal(signal.SIGTERM, signal.SIG_IGN)       # as a node stuck where no handler runs
     faulthandler.register(DUMP_SIGNAL, all_threads=True)
     print("ready", flush=True)

@@ -108,7 +108,7 @@ def test_single_packets_pass_straight_through() -> None:
 @settings(max_examples=200, deadline=None)
 @given(seed=st.integers(0, 2**32))
 def test_mutated_packet_streams_raise_only_decode_errors(seed: int) -> None:
-    """Red team: flipped bits, dropped, duplicated and reordered packets of several messages."""
+    """Flipped bits, dropped, duplicated and reordered packets of several messages."""
     from overdrive.fuzzing import mutate
 
     rng = random.Random(seed)
@@ -124,7 +124,7 @@ def test_mutated_packet_streams_raise_only_decode_errors(seed: int) -> None:
 
 
 def test_packets_from_another_origin_neither_complete_nor_replace() -> None:
-    """Red team: a spoofer claiming the same ids from elsewhere cannot hijack a message."""
+    """A spoofer claiming the same ids from elsewhere cannot hijack a message."""
     packets = split(BIG, packet_payload=300)
     reassembler = Reassembler()
     assert reassembler.feed(packets[0], 0.0, origin="real") is None

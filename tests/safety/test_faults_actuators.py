@@ -18,6 +18,8 @@ from overdrive.safety.actuators import ActuatorFault, ActuatorMonitorConfig
 from overdrive.scenario.schema import parse_scenario
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 ACTUATOR_CODES = {str(int(code)) for code in ActuatorFault}
 
 

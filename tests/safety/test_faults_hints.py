@@ -19,6 +19,8 @@ from overdrive.servers import gear_hints
 from overdrive.servers.speed_hints import HintMonitor
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "faults" / "lugging-downshift.yaml"
 STEEP_RANGER = math.tan(0.5 * PRESETS["ranger-6x6"].max_pitch_rad) * 100.0   # 17.0 %: the
@@ -223,14 +225,14 @@ def test_healthy_runs_are_unchanged(monkeypatch, preset, grade_percent) -> None:
     assert heard.trace[-1] == unheard.trace[-1]
 
 
-# --------------------------------------------------------------------------- red team
+# --------------------------------------------------------------------------- around a downshift
 
 HILL = [(0.0, 0.0), (10.0, 15.0)]
 
 
 def run_events(vehicle: Any, grades: list[tuple[float, float]], events: list[dict],
                duration_s: float = 70.0, obstacles: list[dict] | None = None) -> Any:
-    data = {"name": "hints-redteam", "vehicle": vehicle, "start": "ready",
+    data = {"name": "hints-combined", "vehicle": vehicle, "start": "ready",
             "duration_s": duration_s,
             "world": {"friction": 0.8, "obstacles": obstacles or [], "grade_percent": [
                 {"from_m": f, "grade_percent": g} for f, g in grades]},

@@ -102,8 +102,8 @@ def test_healthy_hill_starts_get_no_hint_and_no_fault(preset, grade_percent) -> 
 
 @pytest.mark.parametrize("effectiveness", [0.9, 0.96])
 def test_a_weak_throttle_in_the_marginal_low_gear_never_rolls_back(effectiveness) -> None:
-    """Red team: the loaded escape's low gear on 16 % is released at full throttle inside the
-    10 % margin; with a throttle weaker than the model it stalls (fault, MOVE failed) or creeps
+    """The loaded escape's low gear on 16 % is released at full throttle inside the 10 %
+    margin; with a throttle weaker than the model it stalls (fault, MOVE failed) or creeps
     up, never back."""
     data = {"name": "hints-hold-weak", "vehicle": {"preset": "escape-hybrid", "mass_kg": 3400.0},
             "start": "ready", "duration_s": 30.0,

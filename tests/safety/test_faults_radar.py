@@ -18,6 +18,8 @@ from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.move_radar import RadarConfig, RadarFault
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 MARGIN_M = RadarConfig().corridor_margin_m
 NOISE_BAND_M = 0.1   # GPS/INS noise at the edge: 0.02 m per reading, pose and target: ~3.5 sigma
 SPEEDS_MPS = (2.0, 5.0, 8.0, 10.0)
@@ -248,7 +250,7 @@ def test_reversing_back_over_the_own_track_is_allowed_and_stops_short_of_the_sta
 @pytest.mark.parametrize(("speed_mps", "offset_m"), [(2.0, 0.6), (8.0, 0.0), (10.0, 0.5)])
 def test_a_noisy_radar_range_still_stops_before_the_obstacle(preset: str, sigma_m: float,
                                                              speed_mps: float, offset_m: float) -> None:
-    """Red team: range noise scatters the remembered points; the nearest one counts and a point
+    """Range noise scatters the remembered points; the nearest one counts and a point
     is seen through only 1 m beyond it, so noise stops the vehicle earlier, never later."""
     result = run(preset, [move(80.0, speed_mps),
                           {"at_s": 0.2, "sensor": {"name": "radar", "fault": "noise", "for_s": 100,
@@ -276,9 +278,10 @@ def test_an_obstacle_in_the_start_up_blind_wedge_is_a_known_limit(preset: str) -
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("at_s", [0.2, 5.0])
 def test_a_frozen_gps_does_not_hide_an_obstacle_from_the_radar(preset: str, at_s: float) -> None:
-    """Red team (issue 16 case 1 with an obstacle): the current reading is judged in the vehicle
-    frame (no pose) and its closing speed sets the reach when the GPS/INS speed is frozen low.
-    Only contact is this module's; the overrun belongs to the motion plausibility checks."""
+    """A frozen GPS/INS with an obstacle ahead (issue 16 case 1): the current reading is judged
+    in the vehicle frame (no pose) and its closing speed sets the reach when the GPS/INS speed is
+    frozen low. Only contact is this module's; the overrun belongs to the motion plausibility
+    checks."""
     result = run(preset, [move(30.0, 5.0),
                           {"at_s": at_s, "sensor": {"name": "gps", "fault": "freeze", "for_s": 30}}],
                  {"obstacles": [{"x_m": 60, "y_m": 0}]})
@@ -288,8 +291,8 @@ def test_a_frozen_gps_does_not_hide_an_obstacle_from_the_radar(preset: str, at_s
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("period_s", [0.2, 1.0])
 def test_a_stream_of_reverses_shares_one_blind_allowance(preset: str, period_s: float) -> None:
-    """Red team: a planner re-sending REVERSE every period would otherwise be granted the blind
-    metre again from each new position and creep back without limit."""
+    """A planner re-sending REVERSE every period would otherwise be granted the blind metre
+    again from each new position and creep back without limit."""
     p = PRESETS[preset]
     events = [{"at_s": 0.5 + i * period_s, "reverse": {"distance_m": 12.0, "maxspeed_mps": 2.0,
                                                        "curvature_1pm": 0}}

@@ -34,6 +34,8 @@ from overdrive.servers.direction_hold import FREE, DirectionFault
 from overdrive.servers.move_radar import RadarConfig
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 FAULT_CODES = {str(int(c)) for c in DirectionFault}
 DISTANCE_M = 12.0
 REVERSE_MPS = 1.5   # move_radar's reverse_max_speed_mps (policy: no rear sensor)
@@ -166,8 +168,8 @@ def test_reversing_up_a_hill_with_a_weak_throttle_never_rolls_forward(
             distance_m=measured_m("reverse", grade_pct, "ready")[1])
 
 
-def test_the_issue_case_is_held_with_a_fault_and_the_move_failed() -> None:
-    """Issue 16: escape-hybrid, 15 %, throttle at 20 %: was 17 m backwards at up to 4.7 m/s."""
+def test_a_weak_throttle_on_15_percent_is_held_with_a_fault_and_the_move_failed() -> None:
+    """The case issue 16 reported: escape-hybrid, 15 %, throttle at 20 %: was 17 m backwards at up to 4.7 m/s."""
     result, issued_s = hill_start("escape-hybrid", 15, "move", 0.2)
     assert outcome(result, issued_s, reverse=False) == "held"
     assert {e["code"] for e in direction_faults(result)} == {

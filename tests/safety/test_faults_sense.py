@@ -16,6 +16,8 @@ from overdrive.scenario.schema import parse_scenario
 from overdrive.servers.move import MoveServer
 from tests.conftest import PRESET_NAMES
 
+pytestmark = pytest.mark.variants
+
 SENSE_CODES = {str(int(c)) for c in PlausibilityFault}
 
 

@@ -8,6 +8,7 @@ one, and the judge must keep failing the stack until then.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from pathlib import Path
 from typing import Any
@@ -178,6 +179,184 @@ def test_shipped_scenarios_are_judged(name: str) -> None:
     result = run_scenario(load_scenario(ROOT / "scenarios" / name), None, keep_trace=False,
                           plot=False, record_mcap=False)
     assert result.summary["violations"] == []
+
+
+# -------------------------------------------------------------- the judge's misses and false alarms
+# Each case failed against the judge's first version because of a defect of the judge, not of
+# the stack: an unsafe run it passed (or whose amount it understated), or a run it failed although
+# the vehicle did what was physically possible or documented. Figures from an independent checker
+# integrating the path from the trace's x/y, every end fixed where the vehicle was when issued.
+
+def details(result: Any) -> dict[str, dict]:
+    return {d["key"]: d for d in result.summary["violation_details"]}
+
+
+def travel_after_m(result: Any, t_s: float) -> float:
+    """Path length driven after ``t_s``, from the trace's x/y."""
+    rows = [r for r in result.trace if float(r["t_s"]) >= t_s - 1e-9]
+    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
+               for a, b in itertools.pairwise(rows))
+
+
+def slow_spss_watchdog(monkeypatch: pytest.MonkeyPatch, timeout_s: float) -> None:
+    slow = functools.partial(speed_module.SpeedServerConfig, spss_timeout_s=timeout_s)
+    monkeypatch.setattr(speed_module, "SpeedServerConfig", slow)
+
+
+MOVE_80 = {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 8, "curvature_1pm": 0}}
+
+
+def test_door_release_does_not_resume_the_stale_move() -> None:
+    """Was missed, rule 4, whole run: MOVE 80 m, door open at 5 s (the vehicle stops, software
+    pause), closed at 10 s. The stack resumed the stale MOVE and drove 59.8 m more with no new
+    command while the judge exited 0 (independent: 59.78 m after the door closed, allowed 0.10 m).
+    The judge now treats the door as an interruption (synthetic test above) and the stack latches it
+    (issue 17): nothing moves after the door closes."""
+    result = run(duration_s=25, events=[MOVE_80, {"at_s": 5, "door": "open"},
+                                        {"at_s": 10, "door": "closed"}])
+    assert travel_after_m(result, 10.5) < 0.05
+    assert result.summary["violation_details"] == []
+
+
+@pytest.fixture
+def without_direction_hold(monkeypatch) -> None:
+    """The stack as it was before issue 16's direction hold (the speed server's hold never
+    acts), so the judge still has the known hill-start rollback to judge."""
+    from overdrive.servers.direction_hold import FREE
+
+    monkeypatch.setattr(speed_module.DirectionHold, "step", lambda self, *a, **k: FREE)
+
+
+@pytest.mark.usefixtures("without_direction_hold")
+def test_hill_start_rollback_with_another_source_advancing_is_judged() -> None:
+    """Was missed, rule 2, whole run: the known hill-start rollback (15 % grade, throttle at 20 %),
+    MOVE 15 m at 8 m/s, plus one advance of 100 m from ``lidar`` 0.1 s later. The vehicle rolls back
+    16.96 m under the forward MOVE (independent, from x/y); the judge exits 0. Without the advance
+    it reports ``direction`` 16.957 m. (The stack without issue 16's direction hold.)"""
+    result = run(duration_s=20, world={"grade_percent": 15}, events=[
+        {"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
+        {"at_s": 0.5, "move": {"distance_m": 15, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 0.6, "advance": {"source": "lidar", "distance_m": 100}}])
+    assert float(result.trace[-1]["x_m"]) < -10.0      # the known rollback (issue 16)
+    assert details(result).get("direction", {}).get("amount", 0.0) > 10.0
+
+
+@pytest.mark.usefixtures("without_direction_hold")
+def test_set_speed_runs_judge_rollback_against_the_gear() -> None:
+    """Was missed, rule 2 (and 3): in a ``set_speed`` run every SPSS is a command with no direction
+    (``_new_command(None)``), so the direction rule never applies although each SPSS names its gear.
+    Here (15 % grade, throttle at 20 %, SPSS 3 m/s in ``drive``) the vehicle rolls backwards 135 m,
+    reaching 13.7 m/s backwards in drive, in 20 s; the judge exits 0."""
+    result = run(duration_s=12, world={"grade_percent": 15}, events=[
+        {"at_s": 0.1, "actuator": {"throttle": {"effectiveness": 0.2}}},
+        {"at_s": 0.5, "set_speed": {"speed_mps": 3, "accel_mps2": 1, "gear": "drive",
+                                    "state": "run"}}])
+    assert float(result.trace[-1]["x_m"]) < -10.0
+    assert "direction" in details(result)
+
+
+def test_a_brake_hold_is_not_the_watchdogs_emergency_stop(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Was missed, rule 5 (watchdog): any speed-server pedal command with brake >= 99 % after the
+    last delivered SPSS counts as the emergency stop, and nothing checks that it lasts. The speed
+    server sends 100 % brake in every brakes-locked state (starting, paused, runwait, idle,
+    shifting), so an SPSS stream lost there satisfies the judge. With the speed server's timeout
+    raised to 30 s (its watchdog effectively gone): start parked, SPSS 5 m/s from 0.5 s, set_speed
+    dropped from 1.0 s: the speed server goes on to run at 7.7 s and drives at 5 m/s with no SPSS
+    for 11 s (48.6 m in 20 s, no e-stop, no fault); the judge exits 0. With the healthy 0.2 s
+    timeout the same run e-stops at 1.1 s."""
+    slow_spss_watchdog(monkeypatch, 30.0)
+    result = run(duration_s=12, start="parked", events=[
+        {"at_s": 0.5, "set_speed": {"speed_mps": 5, "accel_mps2": 1, "gear": "drive",
+                                    "state": "run"}},
+        {"at_s": 1.0, "drop": {"channel": "set_speed", "for_s": 11.0}}])
+    assert result.summary["odometer_m"] > 5.0             # it drove without a command stream
+    assert "watchdog" in details(result)
+
+
+def test_the_watchdogs_amount_is_how_late_the_emergency_stop_came(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Understated amount, rule 5: the violation is recorded once, at the first tick past the
+    deadline, so its amount is always ~0.02 s: with the speed server's timeout at 0.3 s or at
+    5 s (e-stop 5.0 s after the last SPSS, 4.8 s late, the vehicle cruising at 8 m/s meanwhile)
+    the judge reports the same "0.02 s". Here the timeout is 3 s: the e-stop comes ~2.8 s late."""
+    slow_spss_watchdog(monkeypatch, 3.0)
+    result = run(duration_s=10, events=[
+        {"at_s": 0.5, "set_speed": {"speed_mps": 8, "accel_mps2": 2, "gear": "drive",
+                                    "state": "run"}},
+        {"at_s": 6.0, "drop": {"channel": "set_speed", "for_s": 4.0}}])
+    estops = [e["t_s"] for e in result.summary["events"] if e["kind"] == "estop"]
+    assert estops and estops[0] > 8.5
+    assert details(result)["watchdog"]["amount"] > 2.5
+
+
+def test_ranger_braking_at_the_tyre_limit_on_a_slippery_road_is_inside_the_ellipse() -> None:
+    """Was a false alarm, rule 9 (acceleration_ellipse): the judge scales the preset's braking decel
+    by friction / 0.9, but the ranger-6x6 is brake-limited on dry ground (6.5 m/s^2 < 0.9 g): at
+    friction 0.3 its tyres still give 0.3 g = 2.94 m/s^2, the judge allows 6.5 * 0.3 / 0.9 = 2.17
+    m/s^2 (+15 %), and it also counts rolling resistance (0.29 m/s^2) as tyre force. A SafeStop
+    pause at 5 m/s (the vehicle's own pause braking, ABS at the tyre limit) is reported as "uses 150
+    % of the ellipse"."""
+    result = run(vehicle="ranger-6x6", duration_s=12, world={"friction": 0.3}, events=[
+        {"at_s": 0.5, "move": {"distance_m": 80, "maxspeed_mps": 6, "curvature_1pm": 0}},
+        {"at_s": 8, "safestop": "pause"}])
+    assert "acceleration_ellipse" not in details(result)
+
+
+def test_a_stop_at_cruise_stops_within_the_shortest_physical_stop() -> None:
+    """Decided: issue 15 defines STOP as "stop now", judged against the shortest physical stop;
+    the stack meets it through issue 17's hard-braking path. Found, rule 1:
+    docs/move-server.md then defined STOP as a controlled stop on the ellipse's deceleration,
+    and every STOP at speed failed: MOVE 100 m at 8 m/s, replaced at 6.0 s, STOP at 6.05 s at
+    7.96 m/s: the stack stopped in 8.15 m (~4 m/s^2) where 4.83 m was possible."""
+    result = run(duration_s=20, events=[
+        {"at_s": 0.5, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 6.0, "move": {"distance_m": 100, "maxspeed_mps": 8, "curvature_1pm": 0}},
+        {"at_s": 6.05, "stop": {}}])
+    assert "authorization[planner]" not in details(result)
+
+
+REFUSED = [
+    pytest.param({"at_s": 4, "move": {"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0.5}},
+                 "infeasible", id="infeasible-curvature"),
+    pytest.param({"at_s": 8, "reverse": {"distance_m": 10, "maxspeed_mps": 2, "curvature_1pm": 0}},
+                 "busy", id="busy-reverse-while-moving"),
+]
+
+
+@pytest.mark.parametrize(("refused", "reason"), REFUSED)
+def test_a_refused_command_is_not_held_against_the_vehicle(refused: dict, reason: str) -> None:
+    """Was a false alarm, rules 1-3: the judge ignores *invalid* commands ("the move server must
+    reject it") but holds the vehicle to commands the move server refuses by design (``infeasible``,
+    ``busy``, ``not_ready``; docs/move-server.md), whose planner is told to re-plan or to STOP first
+    while the current command stays in force. MOVE 60 m at 8 m/s, then
+
+    - at 4 s a MOVE 10 m at 3 m/s with curvature 0.5 (tighter than the turning circle,
+      |k| <= 0.179, a static limit the judge knows): rejected ``infeasible``; the vehicle
+      completes the accepted MOVE 0.18 m short of its end; the judge reports a 41.26 m overrun
+      of the refused MOVE and 4.98 m/s of speeding;
+    - at 8 s (7.94 m/s, at 37.69 m) a REVERSE 10 m at 2 m/s: rejected ``busy``; the vehicle
+      completes the accepted MOVE (stops at 59.82 m); the judge reports "moved forward 22.128 m
+      under a REVERSE" and 2.16 m/s of speeding (same with ranger-6x6 still finishing a hilly
+      MOVE: "moved forward 1.845 m under a REVERSE")."""
+    result = run(duration_s=20, events=[
+        {"at_s": 0.5, "move": {"distance_m": 60, "maxspeed_mps": 8, "curvature_1pm": 0}}, refused])
+    assert any(e["kind"] == "rejected" and e["reason"] == reason
+               for e in result.summary["events"])
+    assert result.summary["violation_details"] == []
+
+
+def test_a_reverse_clearance_from_another_source_is_not_a_reverse_command() -> None:
+    """Was a false alarm, rule 2 (direction): with no planner, every advance sets the judged
+    direction, so a ``reverse: true`` advance (a rear source granting reverse clearance) turns the
+    judge to "reverse" although the driving module applies reverse authorizations only while the
+    drive mode is reverse (docs/driving-module.md; without a DriveMode it drives forward). Lidar
+    advance 30 m at 0.5 s, rear reverse advance 5 m at 1 s: the vehicle drives 29.79 m forward
+    inside the lidar's authorization; the judge reports "moved forward 29.743 m under a REVERSE"."""
+    result = run(duration_s=20, events=[
+        {"at_s": 0.5, "advance": {"source": "lidar", "distance_m": 30}},
+        {"at_s": 1.0, "advance": {"source": "rear", "distance_m": 5, "reverse": True}}])
+    assert 25.0 < float(result.trace[-1]["x_m"]) < 30.0
+    assert result.summary["violation_details"] == []
 
 
 # --------------------------------------------------------------------------- known defects
@@ -390,7 +569,7 @@ def test_a_short_replacing_move_is_braked_hard_and_announced(preset: str) -> Non
     assert {"short_command", "hard_brake"} <= kinds
 
 
-# --------------------------------------------------------------------------- issue 17, point 6
+# -------------------------------------------------------- lapsed sources, the engine, parking, JAUS
 
 def test_a_lapsed_limit_source_stops_the_vehicle_gently() -> None:
     """A limit source that goes quiet counts as 0 (fail-safe), but nothing else needs braking:
@@ -459,7 +638,7 @@ def test_no_motion_after_an_interruption_over_jaus(kind: str) -> None:
 @pytest.mark.parametrize("friction", [0.3, 0.5])
 @pytest.mark.parametrize("curvature", [0.02, 0.03])
 def test_no_hard_brake_in_a_long_curve_on_a_slippery_road(friction: float, curvature: float) -> None:
-    """Review of issue 17: a curve that uses up the ellipse made the "normal stop" look endless
+    """Found (issue 17): a curve that uses up the ellipse made the "normal stop" look endless
     and latched a full brake with 250 m authorized."""
     result = run(world={"friction": friction}, events=[
         {"at_s": 0.5, "move": {"distance_m": 300, "maxspeed_mps": 10, "curvature_1pm": curvature}}])

@@ -4,6 +4,7 @@ which rule, when and by how much. Synthetic ground truth, commands as issued."""
 from __future__ import annotations
 
 import math
+import random
 
 import pytest
 
@@ -32,6 +33,7 @@ from overdrive.observe.judge import (
 )
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.vehicle.plant import Plant, World
 from tests.conftest import PRESET_NAMES, scenario_dict
 
 DT = 0.01
@@ -221,6 +223,72 @@ def test_the_path_is_integrated_from_x_y_along_the_heading() -> None:
     assert rules(monitor)["authorization[planner]"]["amount"] == pytest.approx(2.0)
 
 
+def test_a_reverse_advance_does_not_erase_the_same_sources_forward_end() -> None:
+    """Was missed, rule 1: the driving module keeps authorizations per (source, direction)
+    (docs/driving-module.md) but the judge keys ends by source only, so a ``reverse: true`` advance
+    replaces the same source's forward end. Whole-run form: MOVE 200 m at 12 m/s, lidar advance 12 m
+    at 9 s (the known authorization-cut overrun: 3.17 m past the lidar's end, independent), lidar
+    reverse advance 5 m at 9.01 s: the judge exits 0."""
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=10.0))
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=5.0, reverse=True))
+    clock.path([5.0, 10.0, 15.0], speed_mps=0.5)
+    assert rules(monitor).get("authorization[advance lidar]", {}).get("amount") == pytest.approx(5.0)
+
+
+def test_an_advance_named_planner_does_not_erase_the_moves_end() -> None:
+    """Was missed, rule 1: ends are keyed by source name and the planner's key is the string
+    ``"planner"``, so an advance from a source called ``planner`` replaces the MOVE's end. Whole-run
+    form: MOVE 60 m at 8 m/s, ``advance: {source: planner, distance_m: 1000}`` at 1 s, brake stuck
+    released at 5 s: the vehicle ends 168.5 m past the MOVE's end (independent) and the judge exits
+    0; without the advance it reports the overrun."""
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(10.0))
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="planner", distance_m=1000.0))
+    clock.path([5.0, 10.0, 20.0], speed_mps=0.5)
+    overruns = [d["amount"] for d in rules(monitor).values() if d["rule"] == "authorization"]
+    assert overruns and max(overruns) == pytest.approx(10.0)
+
+
+def test_the_shortest_stop_includes_the_throttle_actuators_lag() -> None:
+    """Was a false alarm, rule 1: "the shortest physical stop ... no vehicle can beat" counts one
+    period and the brake's lag but not the throttle's: at full throttle the drive force decays with
+    the throttle lag (0.15 s) while the brake builds up. The plant itself, at 12 m/s on a -15 %
+    grade with full throttle, commanded throttle 0 / brake 100 % one period after a STOP, stops 0.38
+    m beyond the judge's shortest stop (0.25 m on the flat): an ideal response is reported as an
+    overrun."""
+    world = World(grade_segments=((0.0, -15.0),), friction=0.8)
+    plant = Plant(ESCAPE_HYBRID, world, random.Random(1), engine_running=True, gear="drive")
+    plant.speed_mps, plant.throttle, plant.brake, plant.park_brake = 12.0, 1.0, 0.0, False
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    Clock(monitor).issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=20.0))
+
+    def observe(tick: int) -> None:
+        monitor.now_s = tick * DT
+        monitor.observe(Topic.TRUTH, Truth(
+            x_m=plant.x_m, y_m=plant.y_m, heading_rad=plant.heading_rad,
+            speed_mps=plant.speed_mps, accel_mps2=plant.accel_mps2, lat_accel_mps2=0.0,
+            curvature_1pm=0.0, pitch_rad=plant.pitch_rad, roll_rad=0.0,
+            odometer_m=plant.odometer_m, slip=False, contact=False))
+        monitor.tick(monitor.now_s)
+
+    plant.step(DT, 100.0, 0.0, 0.0, "drive", True)       # driving at full throttle
+    observe(0)
+    Clock(monitor).issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
+    plant.step(DT, 100.0, 0.0, 0.0, "drive", True)       # the period the command takes
+    tick = 1
+    observe(tick)
+    while plant.speed_mps > 1e-3:
+        plant.step(DT, 0.0, 100.0, 0.0, "drive", True)   # then the hardest stop there is
+        tick += 1
+        observe(tick)
+    assert "authorization[planner]" not in rules(monitor)
+
+
 # --------------------------------------------------------------------------- direction
 
 @pytest.mark.parametrize("offset", JUST)
@@ -260,6 +328,20 @@ def test_rolling_back_after_a_stop_is_caught(monitor: Monitor) -> None:
     clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=2))
     clock.path([10.2, 10.0, 9.5], speed_mps=-0.3)
     assert rules(monitor)["direction"]["amount"] == pytest.approx(0.7)
+
+
+def test_an_advance_from_another_source_does_not_switch_off_the_rollback_rule() -> None:
+    """Was missed, rule 2 (direction): once the planner has spoken, every other source's advance
+    sets ``direction = None`` and the direction rule is off until the next planner command, so a
+    vehicle rolling back under a forward MOVE is never judged."""
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(30.0))
+    clock.issue(Topic.ADVANCE, AdvanceAuthorization(source="lidar", distance_m=100.0))
+    clock.path([1.0, 2.0, 0.0, -5.0], speed_mps=-0.5)
+    found = rules(monitor)
+    assert found.get("direction", {}).get("amount") == pytest.approx(7.0)
 
 
 # --------------------------------------------------------------------------- speed
@@ -329,6 +411,26 @@ def test_the_gear_caps_speed(monitor: Monitor) -> None:
     assert rules(monitor)["speed"]["amount"] == pytest.approx(0.5)
 
 
+def test_a_lowered_limit_is_not_demanded_faster_than_the_road_allows() -> None:
+    """Was a false alarm, rule 3 (speed): a lowered limit had to be met along a 2.0 m/s^2 ramp
+    whatever the road. On ice (friction 0.15) the judge's own ``physical_decel_mps2`` is 1.47 m/s^2:
+    a vehicle braking that hard from 6 m/s to a new 2 m/s limit is still reported as speeding (1.06
+    m/s over the ramp)."""
+    monitor = Monitor(ESCAPE_HYBRID, 0.15, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 6.0)
+    clock.issue(Topic.MOVE_COMMAND, move(1000.0, maxspeed_mps=10.0))
+    decel = physical_decel_mps2(ESCAPE_HYBRID, 0.15, 0.0, reverse=False)
+    x, v = 0.0, 6.0
+    for tick in range(600):
+        if tick % 10 == 0:                              # refreshed like the scenario player
+            clock.issue(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=2.0))
+        v = max(2.0, v - decel * DT)                    # the hardest braking the road allows
+        x += v * DT
+        clock.at(x, v)
+    assert "speed" not in rules(monitor)
+
+
 # --------------------------------------------------------------------------- unintended motion
 
 @pytest.mark.parametrize("devices", [SafetyDevices(safestop="pause"), SafetyDevices(safestop="stop"),
@@ -377,6 +479,42 @@ def test_an_spss_client_scenario_issues_commands_with_each_spss() -> None:
     clock.issue(Topic.SET_SPEED, SetSpeed(speed_mps=5, accel_mps2=1, gear="drive", state="run"))
     clock.path([0.0, 1.0], speed_mps=1.0)
     assert "direction" in rules(stack)
+
+
+@pytest.mark.parametrize("pause", [SafetyDevices(door_open=True), SafetyDevices(internal_error=True)],
+                         ids=["door", "internal-error"])
+def test_a_software_pause_is_an_interruption_too(pause: SafetyDevices) -> None:
+    """Was missed, rule 4 (unintended_motion): ``interruption()`` knows SafeStop, the overrides and
+    the e-stop but not the door or an internal error, although both pause the vehicle (safety mode
+    ``software-pause``) and docs/reliability.md lists "SafeStop pause / door / internal error" as
+    judged by unintended_motion. Motion after the door closes goes unjudged."""
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0))
+    clock.path([5.0, 10.0], speed_mps=0.0)
+    clock.issue(Topic.SAFETY, pause)
+    clock.path([10.0, 10.0], speed_mps=0.0)
+    clock.issue(Topic.SAFETY, SafetyDevices())
+    clock.path([10.5, 15.0, 30.0], speed_mps=0.0)      # the stale MOVE resumes
+    assert "unintended_motion" in rules(monitor)
+
+
+def test_a_partial_speed_override_is_an_interruption() -> None:
+    """Was missed, rule 4: ``partial_mode: manual-speed`` hands the pedals to the human (the
+    simulated driver brakes); when it returns to ``full`` the stack resumes the stale MOVE (56.6 m
+    in a whole run: MOVE 80 m, manual-speed 5-10 s) and the judge says nothing. Like a manual
+    override, releasing it needs a new command before the vehicle moves."""
+    monitor = Monitor(ESCAPE_HYBRID, 0.8, DT)
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(100.0))
+    clock.path([5.0, 10.0], speed_mps=0.0)
+    clock.issue(Topic.SAFETY, SafetyDevices(partial_mode="manual-speed"))
+    clock.path([10.0, 10.0], speed_mps=0.0)
+    clock.issue(Topic.SAFETY, SafetyDevices())
+    clock.path([10.5, 15.0, 30.0], speed_mps=0.0)
+    assert "unintended_motion" in rules(monitor)
 
 
 # --------------------------------------------------------------------------- watchdog
@@ -533,7 +671,7 @@ def test_estop_button_stops_the_vehicle_with_full_brake() -> None:
     assert float(result.trace[-1]["brake_pct"]) > 99.0 and result.trace[-1]["engine"] == "off"
 
 
-# --------------------------------------------------------------------------- edges (review)
+# --------------------------------------------------------------------------- edges
 
 @pytest.mark.parametrize("offset", JUST)
 def test_a_measured_pose_widens_every_distance_bound_by_its_error(offset: float) -> None:

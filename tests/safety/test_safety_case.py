@@ -29,7 +29,7 @@ def functions_in(path: Path) -> set[str]:
     return {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
 
 
-def test_every_hazard_the_issue_names_has_a_row() -> None:
+def test_every_required_hazard_has_a_row() -> None:
     hazards = " ".join(row[1] for row in rows())
     assert [h for h in REQUIRED if h not in hazards] == []
 

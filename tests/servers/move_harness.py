@@ -1,4 +1,5 @@
-"""Closed-loop harness for the move-server tests: a scenario run that also keeps chosen topics."""
+"""Closed-loop harness for the move-server tests: a scenario run that also keeps chosen topics,
+and whole runs built from a list of events (the runner's own, with the judge)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from overdrive.bus.local import LocalBus
 from overdrive.messages import Topic
 from overdrive.observe.recorder import Recorder
 from overdrive.run.compose import build_nodes
+from overdrive.run.sim import run_scenario
 from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, LockstepRuntime
 from overdrive.scenario.player import channel_faults
 from overdrive.scenario.schema import parse_scenario
@@ -68,3 +70,20 @@ def simulate(spec: dict[str, Any], keep: tuple[str, ...] = ()) -> Run:
         "events": recorder.events,
     }
     return Run(summary, recorder.rows, series, {n.name: n for n in nodes})
+
+
+def run_events(events: list[dict], *, duration_s: float, vehicle: Any = "escape-hybrid",
+               world: dict | None = None, start: str = "ready") -> Any:
+    """``events`` as a scenario run by ``overdrive sim``'s runner (judged, summarised)."""
+    data = {"name": "move-run", "vehicle": vehicle, "start": start, "duration_s": duration_s,
+            "world": world or {}, "events": events}
+    return run_scenario(parse_scenario(data), None)
+
+
+def move(at_s: float, distance_m: float, maxspeed_mps: float, curvature_1pm: float = 0.0) -> dict:
+    return {"at_s": at_s, "move": {"distance_m": distance_m, "maxspeed_mps": maxspeed_mps,
+                                   "curvature_1pm": curvature_1pm}}
+
+
+def events_of(result: Any, kind: str) -> list[dict]:
+    return [e for e in result.summary["events"] if e["kind"] == kind]

@@ -1,6 +1,6 @@
 """Hard braking (issue 17): when what is left of the authorization is shorter than a normal stop,
 the driving module asks for a full-brake stop at once, without waiting for the SPSS period, and
-the SPSS stream keeps its 100 ms cadence."""
+the SPSS stream keeps its 100 ms cadence; an ordinary MOVE (a whole run uphill) never needs it."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ import pytest
 from overdrive.messages import AdvanceAuthorization, Notice, SetSpeed, Topic
 from overdrive.servers.driving import DrivingModule
 from tests.servers.driving_harness import DT_S, outputs, sensors
+from tests.servers.move_harness import events_of, move
+from tests.servers.move_harness import run_events as run
 
 
 def drive(node: DrivingModule, t0: float, seconds: float, speed: float, odo: float,
@@ -163,3 +165,21 @@ def test_a_future_dated_message_does_not_block_its_source(preset) -> None:
         (Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=3.0, issued_s=1.02))])
     status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
     assert status.authorized_m == pytest.approx(7.0) and status.speed_limit_mps == pytest.approx(3.0)
+
+
+# --------------------------------------------------------------------------- whole runs
+
+def test_an_ordinary_uphill_move_ends_without_hard_braking() -> None:
+    """Attack: spurious hard braking in normal driving (one MOVE, no cut, on a hill).
+
+    MOVE 12 m at 5 m/s on a +5 % grade. The terminal approach arrives at 0.35 m/s with 0.21 m
+    left and ``_hard_brake`` fires at 7.73 s: "0.21 m authorized at 0.35 m/s, a normal stop needs
+    0.21 m: braking with everything" (the tail allowance ``stop_tail_m(v, 0.0, ...)`` ignores the
+    slope that helps the stop). It fires at the end of every uphill MOVE tried: +5/10/15/20 %,
+    escape-hybrid and ranger-6x6 (e.g. +15 % escape: 0.21 m at 0.38 m/s vs 0.23 m), and in a
+    plain MOVE stream on +15 %. On the flat and downhill it does not. Nothing in the command
+    asked for a stop shorter than the normal one.
+    """
+    result = run([move(0.5, 12, 5)], duration_s=15, world={"grade_percent": 5})
+    assert result.exit_code == 0
+    assert events_of(result, "hard_brake") == []

@@ -7,18 +7,22 @@ import math
 import pytest
 
 from overdrive.dynamics.ellipse import ellipse_for, max_safe_speed_mps
-from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
+    GpsIns,
+    Imu,
     MaxSpeed,
     Notice,
     SetSpeed,
     SteerCommand,
     SteeringRequest,
     Topic,
+    WheelSpeed,
 )
+from overdrive.safety.plausibility import PlausibilityFault
 from overdrive.servers.driving import (
     Authorizations,
     DrivingConfig,
@@ -28,7 +32,7 @@ from overdrive.servers.driving import (
     limit_curvature,
     steer_pct_for,
 )
-from tests.servers.driving_harness import IdealLoop, outputs, sensors
+from tests.servers.driving_harness import DT_S, IdealLoop, outputs, sensors
 
 PRESET_NAMES = tuple(PRESETS)
 BAD_NUMBERS = (math.nan, math.inf, -math.inf)
@@ -313,3 +317,77 @@ def test_steering_waits_for_the_speed_to_fit_the_curve(params):
         assert lat <= e.lat_mps2 * (1 + 1e-9)
     assert loop.speed_mps**2 * k <= e.lat_mps2 * (1 + 1e-9)
     assert status(out).curvature_1pm == pytest.approx(k)
+
+
+# --------------------------------------------------------------------------- motion sensing
+
+GPS_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "pitch_rad", "roll_rad", "odometer_m")
+
+
+def gps_ins(**kw) -> GpsIns:
+    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
+                  odometer_m=0.0)
+    fields.update(kw)
+    return GpsIns(**fields)
+
+
+def imu(accel_x_mps2: float, yaw_rate_rps: float = 0.0) -> Imu:
+    return Imu(accel_x_mps2=accel_x_mps2, accel_y_mps2=0.0, accel_z_mps2=G_MPS2,
+               yaw_rate_rps=yaw_rate_rps)
+
+
+def fault_codes(out) -> set[int]:
+    return {int(n.code) for t, n in out if t == Topic.NOTICE and n.kind == "fault"}
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_driving_module_checker_sees_the_imu(preset: str) -> None:
+    """GPS/INS and wheel speed frozen at 3 m/s while the IMU shows 1 m/s^2 of braking: the
+    driving module's own checker must call them frozen (it saw no IMU when ``_imu`` was
+    defined twice)."""
+    node = DrivingModule(PRESETS[preset])
+    frozen_gps = gps_ins(speed_mps=3.0, odometer_m=10.0)
+    frozen_wheel = WheelSpeed(speed_mps=3.0)
+    codes: set[int] = set()
+    for i in range(200):
+        t = i * DT_S
+        # noisy IMU: every reading differs (a live, varying sensor)
+        out = node.step(t, [(Topic.GPS_INS, frozen_gps), (Topic.WHEEL_SPEED, frozen_wheel),
+                            (Topic.IMU, imu(-1.0 + 1e-4 * (i % 7), yaw_rate_rps=0.01 * (i % 3)))])
+        codes |= fault_codes(out)
+    assert int(PlausibilityFault.NO_TRUSTED_SPEED) in codes
+    assert node.yaw_rate_rps == pytest.approx(0.01 * (199 % 3))   # yaw rate kept too
+
+
+@pytest.mark.parametrize("field", GPS_FIELDS)
+def test_driving_module_refuses_a_gps_ins_with_any_non_finite_field(field: str) -> None:
+    node = DrivingModule(PRESETS["escape-hybrid"])
+    good = gps_ins(odometer_m=1.0)
+    node.step(0.0, [(Topic.GPS_INS, good)])
+    out = node.step(DT_S, [(Topic.GPS_INS, gps_ins(**{"odometer_m": 1.0, field: math.nan}))])
+    assert any(t == Topic.NOTICE and n.kind == "rejected" for t, n in out)
+    assert node.gps == good
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_steering_monitor_gets_the_trusted_speed_not_a_frozen_gps(preset: str) -> None:
+    """GPS/INS frozen at 5 m/s while the wheels read ~2 m/s: the steering monitor (which turns
+    the yaw rate into the curvature actually driven) must get the trusted 2 m/s."""
+    params = PRESETS[preset]
+    node = DrivingModule(params)
+    seen: list[float] = []
+    real_update = node.steer_monitor.update
+
+    def spy(dt_s, **kw):
+        seen.append(kw["speed_mps"])
+        return real_update(dt_s, **kw)
+
+    node.steer_monitor.update = spy
+    frozen_gps = gps_ins(speed_mps=5.0, odometer_m=10.0)
+    for i in range(100):
+        inbox = [(t, m) for t, m in sensors(params, speed_mps=2.0) if t != Topic.GPS_INS]
+        inbox += [(Topic.GPS_INS, frozen_gps),
+                  (Topic.WHEEL_SPEED, WheelSpeed(speed_mps=2.0 + 1e-3 * (i % 5)))]
+        node.step(i * DT_S, inbox)
+    assert not node.motion.trusted("gps_ins")
+    assert seen and all(abs(v - 2.0) < 0.01 for v in seen[-10:])

@@ -74,7 +74,7 @@ def test_a_new_command_after_the_failure_runs(preset) -> None:
 
 
 def test_a_stale_failed_hold_does_not_fail_a_new_command(preset) -> None:
-    """Review of issue 16: a MOVE accepted before the speed server has seen target 0 still reads
+    """Found (issue 16): a MOVE accepted before the speed server has seen target 0 still reads
     the previous command's "failed" hold; that is not this command's failure. A failure after
     the hold was seen clear again is."""
     node = MoveServer(preset)

@@ -7,8 +7,19 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
-from overdrive.messages import GpsIns, MoveCommand, Radar
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.messages import (
+    AdvanceAuthorization,
+    GpsIns,
+    Imu,
+    MoveCommand,
+    Radar,
+    SpeedState,
+    Topic,
+    VehicleStatus,
+    WheelSpeed,
+)
+from overdrive.servers.move import MoveServer
 from overdrive.servers.move_radar import (
     RadarConfig,
     RadarCorridor,
@@ -314,3 +325,82 @@ def test_forward_travel_after_a_reverse_is_tracked_from_where_it_began() -> None
         c.record_trail(gps(x=-1.0 + 0.02 * i, odo=1.0 + 0.02 * i, v=2.0), 1)
     clamped, _ = c.clamp_reverse(reverse(25.0), gps(x=19.0, odo=21.0))
     assert clamped.distance_m == pytest.approx(20.0 + CFG.reverse_blind_m, abs=0.1)
+
+
+# --------------------------------------------------------------------------- untrusted pose
+
+def gps_ins(**kw) -> GpsIns:
+    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
+                  odometer_m=0.0)
+    fields.update(kw)
+    return GpsIns(**fields)
+
+
+def imu(accel_x_mps2: float, yaw_rate_rps: float = 0.0) -> Imu:
+    return Imu(accel_x_mps2=accel_x_mps2, accel_y_mps2=0.0, accel_z_mps2=G_MPS2,
+               yaw_rate_rps=yaw_rate_rps)
+
+
+def move_inbox(params, *, speed: float, odo: float, wheel_mps: float | None, radar: bool,
+               i: int) -> list:
+    gear = params.drive_gear
+    inbox = [
+        (Topic.VEHICLE_STATUS, VehicleStatus(
+            gear=gear, shifting=False, engine="running", engine_rpm=1000.0, start_failed=False,
+            traction_control=False, steer_pct=0.0, throttle_pct=0.0, brake_pct=0.0,
+            safety_mode="drive-by-wire")),
+        (Topic.GPS_INS, gps_ins(x_m=odo, speed_mps=speed, odometer_m=odo)),
+        (Topic.IMU, imu(1e-4 * (i % 7))),
+        (Topic.SPEED_STATE, SpeedState(speed_mps=speed, accel_mps2=0.0, gear=gear, state="run")),
+    ]
+    if wheel_mps is not None:
+        inbox.append((Topic.WHEEL_SPEED, WheelSpeed(speed_mps=wheel_mps + 1e-4 * (i % 5))))
+    if radar:
+        inbox.append((Topic.RADAR, Radar(target=False, range_m=params.radar_range_m)))
+    return inbox
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_untrusted_radar_cap_shrinks_with_progress_when_the_gps_freezes(preset: str) -> None:
+    """Radar silent and GPS/INS frozen together while the wheels say 2 m/s: the forward
+    authorization cap must shrink with the wheels' travel (it stood still on the raw odometer)."""
+    params = PRESETS[preset]
+    node = MoveServer(params)
+    speed = 2.0
+    odo = 0.0
+    for i in range(50):                    # healthy: radar clear, GPS and wheels agree
+        inbox = move_inbox(params, speed=speed, odo=odo, wheel_mps=speed, radar=True, i=i)
+        if i == 0:
+            inbox.append((Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1,
+                                                          distance_m=150.0, maxspeed_mps=3.0)))
+        node.step(i * DT, inbox)
+        odo += speed * DT
+    caps = []
+    for i in range(50, 350):               # radar silent, GPS frozen, the wheels go on
+        out = node.step(i * DT, move_inbox(params, speed=speed, odo=odo, wheel_mps=speed,
+                                           radar=False, i=i))
+        adv = [m for t, m in out if t == Topic.ADVANCE and isinstance(m, AdvanceAuthorization)]
+        caps.append(adv[-1].distance_m)
+    travelled_m = speed * 300 * DT         # 6 m by the wheels
+    assert caps[-1] <= caps[30] - (travelled_m - 0.6 - 1.0)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("outlier_m", [3.0, 20.0, 60.0, -60.0])
+def test_a_remembered_target_survives_one_outlier_pose(preset: str, outlier_m: float) -> None:
+    params = PRESETS[preset]
+    c = RadarCorridor(params)
+    front = params.length_m - params.rear_overhang_m
+    target_x = 30.0
+    x = 0.0
+    for i in range(10):                    # the target dead ahead, seen
+        c.receive(i * DT, Radar(target=True, range_m=target_x - x - front, bearing_rad=0.0))
+        c.update(i * DT, gps_ins(x_m=x, speed_mps=1.0, odometer_m=x), (0.0,), True)
+        x += 0.01
+    seen = c.nearest_m
+    # one period without a radar reading and a pose `outlier_m` off (odometer consistent)
+    c.update(0.10, gps_ins(x_m=x + outlier_m, speed_mps=1.0, odometer_m=x), (0.0,), True)
+    assert c.nearest_m == pytest.approx(seen, abs=0.05)
+    x += 0.01
+    c.update(0.11, gps_ins(x_m=x, speed_mps=1.0, odometer_m=x), (0.0,), True)
+    assert c.nearest_m == pytest.approx(seen - 0.01, abs=0.05)

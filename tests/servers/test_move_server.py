@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2
+from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -456,3 +456,30 @@ def test_a_command_shorter_than_the_shortest_stop_is_accepted_with_a_warning(
     assert bool(notices) == short and ("vehicle not in the expected position" in reply.message) == short
     if short:
         assert "expect an overrun" in notices[0].reason
+
+
+# ----------------------------------------------------------------------------- sensor input
+
+DT_S = 0.01
+BAD_NUMBERS = (math.nan, math.inf, -math.inf)
+GPS_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "pitch_rad", "roll_rad", "odometer_m")
+
+
+def gps_ins(**kw) -> GpsIns:
+    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
+                  odometer_m=0.0)
+    fields.update(kw)
+    return GpsIns(**fields)
+
+
+@pytest.mark.parametrize("field", GPS_FIELDS)
+@pytest.mark.parametrize("bad", BAD_NUMBERS)
+def test_move_server_refuses_a_gps_ins_with_any_non_finite_field(field: str, bad: float) -> None:
+    node = MoveServer(PRESETS["escape-hybrid"])
+    good = gps_ins(x_m=1.0, odometer_m=1.0)
+    node.step(0.0, [(Topic.GPS_INS, good)])
+    out = node.step(DT_S, [(Topic.GPS_INS, gps_ins(**{"x_m": 1.0, "odometer_m": 1.0,
+                                                      field: bad}))])
+    rejected = [n for t, n in out if t == Topic.NOTICE and n.kind == "rejected"]
+    assert rejected and rejected[0].code == "sensor"
+    assert node.gps == good

@@ -648,3 +648,40 @@ def test_idle_with_a_new_gear_from_run_stops_then_shifts(speed: float):
     assert done and rig.faults() == []
     names = rig.state_names()
     assert names[-3:] == ["idle", "shifting", "idle"] and "run" in names
+
+
+# --------------------------------------------------------------------------- sensor input
+
+BAD_NUMBERS = (math.nan, math.inf, -math.inf)
+
+
+def gps_ins(**kw) -> GpsIns:
+    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
+                  odometer_m=0.0)
+    fields.update(kw)
+    return GpsIns(**fields)
+
+
+@pytest.mark.parametrize("field", ("speed_mps", "pitch_rad", "odometer_m"))
+@pytest.mark.parametrize("bad", BAD_NUMBERS)
+def test_speed_server_refuses_a_gps_ins_with_a_non_finite_field_it_uses(field: str,
+                                                                         bad: float) -> None:
+    node = SpeedServer(PRESETS["ranger-6x6"])
+    good = gps_ins(odometer_m=1.0)
+    node.step(0.0, [(Topic.GPS_INS, good)])
+    out = node.step(PERIOD_S, [(Topic.GPS_INS, gps_ins(**{"odometer_m": 1.0, field: bad}))])
+    rejected = [n for t, n in out if t == Topic.NOTICE and n.kind == "rejected"]
+    assert rejected and rejected[0].reason.startswith("gps_ins")
+    assert node.gps == good
+
+
+def test_an_untrusted_gps_is_not_a_source_of_the_slow_creep_rule() -> None:
+    """A frozen GPS reading 0 (untrusted by the plausibility checks) must not hide a rollback the
+    wheels see: the direction hold gets only trusted sources."""
+    server = SpeedServer(PRESETS["escape-hybrid"], initial_state="run")
+    server.last_now_s = 1.0
+    server.gps, server.last_gps_s = gps_ins(speed_mps=0.0), 1.0
+    server.wheel_mps, server.last_wheel_s = -0.08, 1.0
+    assert sorted(server._source_speeds_mps(1)) == [-0.08, 0.0]
+    server.motion.gps_track.trusted = False
+    assert server._source_speeds_mps(1) == [-0.08]

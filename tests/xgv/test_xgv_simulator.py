@@ -417,7 +417,7 @@ def test_connections_per_peer_are_bounded() -> None:
 
 
 def test_a_datagram_packed_with_messages_costs_at_most_eight_dispatches() -> None:
-    """Red team: 200 queries in one 4 kB datagram were 200 dispatches (and replies)."""
+    """Found: 200 queries in one 4 kB datagram were 200 dispatches (and replies)."""
     from overdrive.jaus import Header, encode_datagram
     from overdrive.vehicle.xgv import MAX_MESSAGES_PER_DATAGRAM
 
