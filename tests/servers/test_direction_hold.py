@@ -1,5 +1,5 @@
-"""Unit tests of the direction hold (issue 16, case 2): its table, each threshold swept just
-inside and just outside, faults once per onset, on both presets."""
+"""Unit tests of the direction hold (hill-start hold, rollback catch and faults): its table, each
+threshold swept just inside and just outside, faults once per onset, on both presets."""
 
 from __future__ import annotations
 
@@ -78,7 +78,7 @@ def test_the_table_names_only_known_states_and_events() -> None:
     assert "free --> holding : launch" in mermaid_diagram()
 
 
-def test_fault_codes_are_in_the_issue_16_range() -> None:
+def test_direction_hold_fault_codes_stay_in_their_block_1121_to_1129() -> None:
     assert all(1121 <= int(code) <= 1129 for code in DirectionFault)
 
 
