@@ -70,12 +70,17 @@ DirectionHoldState = Literal["free", "holding", "caught", "failed"]
 class MoveCommand(Message, frozen=True):
     """MOVE / REVERSE / STOP from the planner (seed 004 ``MsgMOVE``/``MsgREVERSE``/``MsgSTOP``).
 
-    ``command_id`` increases with every command the planner issues: a command whose id is not
-    newer than one already seen is rejected as ``stale`` (reordered or repeated on the way).
+    ``session`` identifies one run of the planner: a planner picks a new one when it starts (a
+    random 63-bit number), so a restarted planner is recognised and its ids may start again.
+    ``command_id`` increases with every command one session issues. A STOP is always obeyed. A
+    MOVE or REVERSE from the current session whose id is not newer than one already seen, or
+    from an earlier session, is ``stale``: it only restricts the command in force (its end,
+    if closer; its max speed, if lower) and never starts, extends or turns motion.
     """
 
     kind: MoveKind
     command_id: int = 0
+    session: int = 0                 # the planner's run (0: a planner that does not say)
     distance_m: float = 0.0
     maxspeed_mps: float = 0.0
     curvature_1pm: float = 0.0
@@ -90,6 +95,8 @@ class MoveReply(Message, frozen=True):
     kind: MoveKind
     accepted: bool
     code: Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale"] = "ok"
+    restricted: bool = False         # a stale command's restriction was applied (see MoveCommand)
+    session: int = 0                 # the command's session, echoed
     message: str = ""
 
 

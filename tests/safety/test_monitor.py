@@ -85,15 +85,16 @@ class Clock:
         for x in xs:
             self.at(x, speed_mps)
 
-    def issue(self, topic: str, msg: object, accepted: bool = True) -> None:
-        """Issue ``msg``; a MOVE / REVERSE also gets the move server's reply (accepted or not)."""
+    def issue(self, topic: str, msg: object, accepted: bool = True, code: str = "") -> None:
+        """Issue ``msg``; a MOVE / REVERSE also gets the move server's reply (accepted or not,
+        with ``code``: "ok" / "busy" by default)."""
         self.monitor.observe(topic, msg)
         if topic == Topic.MOVE_COMMAND:
             self.monitor.observe_delivered(topic, msg)      # delivered at once
         if topic == Topic.MOVE_COMMAND and msg.kind != "stop":
             self.monitor.observe(Topic.MOVE_REPLY, MoveReply(
                 command_id=msg.command_id, kind=msg.kind, accepted=accepted,
-                code="ok" if accepted else "busy"))
+                code=code or ("ok" if accepted else "busy"), session=msg.session))
 
 
 @pytest.fixture
@@ -122,6 +123,62 @@ def test_move_end_is_fixed_where_it_was_issued(monitor: Monitor, offset: float) 
         assert v["rule"] == "authorization" and v["unit"] == "m"
         assert v["amount"] == pytest.approx(offset, abs=1e-6) and v["t_s"] == pytest.approx(3 * DT)
         assert "MOVE #1 of 10 m" in v["message"]
+
+
+@pytest.mark.parametrize("offset", JUST)
+def test_a_stale_command_that_shortens_binds_its_closer_end(monitor: Monitor, offset: float) -> None:
+    """What slows or stops is always obeyed: a stale MOVE (an old id, an earlier session) is
+    held to its end when that is closer than the one in force, from where it was issued."""
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(30.0, cid=5))
+    clock.path([1.0, 2.0], speed_mps=0.3)
+    clock.issue(Topic.MOVE_COMMAND, move(5.0, maxspeed_mps=2.0, cid=1), accepted=False,
+                code="stale")
+    assert monitor.command_limit_mps == 2.0
+    clock.path([4.0, 7.0 + offset], speed_mps=0.3)
+    found = rules(monitor)
+    if offset < 0:
+        assert found == {}
+    else:
+        v = found["authorization[planner]"]
+        assert v["amount"] == pytest.approx(offset, abs=1e-6)
+        assert "stale MOVE #1 of 5 m" in v["message"]
+
+
+@pytest.mark.parametrize(("kind", "distance_m", "code"), [
+    ("move", 50.0, "stale"),        # further: a stale command may not extend
+    ("reverse", 1.0, "stale"),      # the other direction: nothing to restrict
+    ("move", 5.0, "busy"),          # refused for another reason: not the planner's intent
+])
+def test_a_refused_command_that_would_not_restrict_binds_nothing(
+        monitor: Monitor, kind: str, distance_m: float, code: str) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(30.0, cid=5))
+    clock.issue(Topic.MOVE_COMMAND, move(distance_m, kind=kind, cid=1), accepted=False, code=code)
+    clock.path([10.0, 20.0, 29.9], speed_mps=0.3)
+    assert rules(monitor) == {}
+
+
+def test_a_stale_command_with_nothing_in_force_binds_nothing(monitor: Monitor) -> None:
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, move(5.0, cid=1), accepted=False, code="stale")
+    assert "authorization[planner]" not in monitor.ends
+
+
+def test_a_restarted_planners_ids_do_not_collide_with_the_old_ones(monitor: Monitor) -> None:
+    """Commands are told apart by (session, id): a new session's MOVE #1 and the old session's
+    unanswered MOVE #1 are two commands."""
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1, session=1,
+                                                    distance_m=40.0, maxspeed_mps=5.0))
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1, session=2,
+                                                distance_m=10.0, maxspeed_mps=5.0))
+    assert monitor.ends["authorization[planner]"].label == "MOVE #1 of 10 m"
+    assert (1, 1) in monitor._pending and (2, 1) not in monitor._pending
 
 
 def test_the_largest_overrun_is_reported_not_the_first_crossing(monitor: Monitor) -> None:
@@ -800,10 +857,10 @@ def test_unanswered_commands_are_bounded_and_invalid_ones_ignored(monitor: Monit
     assert len(monitor._pending) == 64
     monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=500, distance_m=-1.0,
                                                     maxspeed_mps=1.0))
-    assert 500 not in monitor._pending
+    assert (0, 500) not in monitor._pending
     for cid in range(1000, 1100):                      # STOPs issued but never delivered
         monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=cid))
-    assert len(monitor._stops) == 64 and 1099 in monitor._stops and 1000 not in monitor._stops
+    assert len(monitor._stops) == 64 and (0, 1099) in monitor._stops and (0, 1000) not in monitor._stops
 
 
 def test_a_reverse_advance_never_sets_the_direction(monitor: Monitor) -> None:

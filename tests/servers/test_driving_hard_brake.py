@@ -140,6 +140,33 @@ def test_an_older_speed_limit_from_a_source_is_refused(preset) -> None:
 
 
 
+@pytest.mark.parametrize("older_m", [2.0, 4.9, 5.0, 50.0])
+def test_an_older_authorization_still_brings_its_sources_end_closer(preset, older_m: float) -> None:
+    """What slows or stops is always obeyed: a reordered authorization is not taken as the
+    source's newest, but an end closer than the one in force applies."""
+    node = DrivingModule(preset)
+    newer = AdvanceAuthorization(source="lidar", distance_m=5.0, issued_s=0.5)
+    older = AdvanceAuthorization(source="lidar", distance_m=older_m, issued_s=0.45)
+    _, odo = drive(node, 0.5, 0.01, 0.0, 0.0, [(Topic.ADVANCE, newer)])
+    out, _ = drive(node, 0.51, 0.02, 0.0, odo, [(Topic.ADVANCE, older)])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == pytest.approx(min(older_m, 5.0))
+
+
+@pytest.mark.parametrize("older_mps", [1.0, 2.0, 5.0])
+def test_an_older_lower_speed_limit_still_applies(preset, older_mps: float) -> None:
+    from overdrive.messages import MaxSpeed
+
+    node = DrivingModule(preset)
+    drive(node, 0.0, 0.01, 0.0, 0.0, [(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=2.0,
+                                                                  issued_s=0.0))])
+    out, _ = drive(node, 0.01, 0.01, 0.0, 0.0,
+                   [(Topic.MAX_SPEED, MaxSpeed(source="map", speed_mps=older_mps,
+                                               issued_s=-0.05))])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.speed_limit_mps == pytest.approx(min(older_mps, 2.0))
+
+
 def test_the_last_of_equal_stamps_wins(preset) -> None:
     """Two messages from one source with the same stamp (two events at the same at_s): the
     later one stands, as before ordering existed; a shorter one is never refused for it."""

@@ -315,15 +315,102 @@ def test_speed_reduction_notice_when_it_starts(preset) -> None:
 # ----------------------------------------------------------------------------- ordering (issue 17)
 
 @pytest.mark.parametrize("older", [0, 1, 2])
-def test_a_command_not_newer_than_one_seen_is_stale(preset, older: int) -> None:
+def test_a_stale_command_never_extends_the_command_in_force(preset, older: int) -> None:
     node = MoveServer(preset)
-    out = run(node, 0.0, 0.1, (cmd(d=50.0, cid=2),))
+    out = run(node, 0.0, 0.1, (cmd(d=50.0, v=3.0, cid=2),))
     assert last(out, Topic.MOVE_REPLY).accepted
-    out = node.step(0.1, [*sensors(preset), (Topic.MOVE_COMMAND, cmd(d=5.0, cid=older))])
+    out = node.step(0.1, [*sensors(preset), (Topic.MOVE_COMMAND, cmd(d=80.0, v=6.0, cid=older))])
     reply = last(out, Topic.MOVE_REPLY)
-    assert (reply.accepted, reply.code, reply.command_id) == (False, "stale", older)
+    assert (reply.accepted, reply.code, reply.command_id, reply.restricted) == \
+        (False, "stale", older, False)
     assert "not newer than 2" in reply.message
     assert last(out, Topic.ADVANCE).distance_m == pytest.approx(50.0), "the newer command runs on"
+    assert last(out, Topic.MAX_SPEED).speed_mps <= 3.0
+
+
+@pytest.mark.parametrize("older", [0, 1, 2])
+@pytest.mark.parametrize(("d", "v"), [(5.0, 3.0), (50.0, 1.0), (5.0, 1.0)])
+def test_a_stale_command_that_slows_or_shortens_is_obeyed(preset, older: int, d: float,
+                                                          v: float) -> None:
+    """What slows or stops is always obeyed: a stale MOVE's closer end and lower max speed
+    apply to the command in force (reordered, repeated, or from a restarted planner)."""
+    node = MoveServer(preset)
+    run(node, 0.0, 0.1, (cmd(d=50.0, v=3.0, cid=2),))
+    out = node.step(0.1, [*sensors(preset), (Topic.MOVE_COMMAND, cmd(d=d, v=v, cid=older))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.accepted, reply.code, reply.restricted) == (False, "stale", True)
+    assert "restricted only" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(min(d, 50.0))
+    assert last(out, Topic.MAX_SPEED).speed_mps <= v + 1e-9
+
+
+def test_a_stale_command_in_the_other_direction_changes_nothing(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.1, (cmd(d=50.0, cid=2),))
+    out = node.step(0.1, [*sensors(preset), (Topic.MOVE_COMMAND, cmd("reverse", d=1.0, cid=1))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.code, reply.restricted) == ("stale", False)
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(50.0)
+    assert last(out, Topic.DRIVE_MODE).direction == "forward"
+
+
+@pytest.mark.parametrize("older", [0, 1, 3])
+def test_a_stale_stop_is_obeyed_at_once(preset, older: int) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=3),), speed=3.0)
+    out = node.step(0.5, [*sensors(preset, speed=3.0), (Topic.MOVE_COMMAND, cmd("stop", cid=older))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.kind, reply.accepted) == ("stop", True)
+    assert "a STOP is always obeyed" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+
+
+def _session_cmd(kind: str = "move", d: float = 10.0, cid: int = 1, session: int = 1,
+                 v: float = 3.0) -> MoveCommand:
+    return MoveCommand(kind=kind, command_id=cid, session=session, distance_m=d,  # type: ignore[arg-type]
+                       maxspeed_mps=v)
+
+
+def test_a_restarted_planner_is_a_new_session_whose_first_command_goes_through(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (_session_cmd(d=80.0, cid=7, session=11),), speed=3.0)
+    out = node.step(0.5, [*sensors(preset, speed=3.0),
+                          (Topic.MOVE_COMMAND, _session_cmd(d=20.0, cid=1, session=42))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.accepted, reply.session, reply.command_id) == (True, 42, 1)
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(20.0)
+    # the new session may also extend: it is the planner now
+    out = node.step(0.51, [*sensors(preset, speed=3.0),
+                           (Topic.MOVE_COMMAND, _session_cmd(d=60.0, cid=2, session=42))])
+    assert last(out, Topic.MOVE_REPLY).accepted
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(60.0)
+
+
+def test_an_earlier_sessions_late_command_only_restricts(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.2, (_session_cmd(d=80.0, cid=9, session=11),), speed=3.0)
+    node.step(0.2, [*sensors(preset, speed=3.0),
+                    (Topic.MOVE_COMMAND, _session_cmd(d=30.0, cid=1, session=42))])
+    out = node.step(0.21, [*sensors(preset, speed=3.0),   # session 11's MOVE, delayed
+                           (Topic.MOVE_COMMAND, _session_cmd(d=90.0, cid=10, session=11))])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.accepted, reply.code, reply.session) == (False, "stale", 11)
+    assert "not the planner's current session 42" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(30.0)
+    out = node.step(0.22, [*sensors(preset, speed=3.0),   # ... and its STOP: obeyed
+                           (Topic.MOVE_COMMAND, _session_cmd("stop", cid=11, session=11))])
+    assert last(out, Topic.MOVE_REPLY).accepted
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+
+
+def test_an_invalid_stop_is_still_a_stop(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    bad = MoveCommand(kind="stop", command_id=2, issued_s=float("nan"))
+    out = node.step(0.5, [*sensors(preset, speed=3.0), (Topic.MOVE_COMMAND, bad)])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.kind, reply.accepted) == ("stop", True) and "issued_s" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
 
 
 def test_a_stop_outranks_an_earlier_move_delivered_after_it(preset) -> None:

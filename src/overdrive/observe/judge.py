@@ -113,6 +113,11 @@ TRUTH_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2", "lat_acc
                 "curvature_1pm", "pitch_rad", "roll_rad", "odometer_m")
 
 
+def _key(msg: Any) -> tuple[int, int]:
+    """A planner command's identity: (session, command id)."""
+    return (getattr(msg, "session", 0), msg.command_id)
+
+
 @dataclass
 class Violation:
     """One rule broken: the worst instance of the run (``amount`` in ``unit``) and when."""
@@ -207,8 +212,9 @@ class Monitor:
         self.gear_cap_mps = math.inf
         # authorization: key -> end; planner commands wait for the move server's reply
         self.ends: dict[str, End] = {}
-        self._pending: dict[int, tuple[Any, float, float, float]] = {}
-        self._stops: dict[int, float] = {}   # STOPs issued, not yet delivered: id -> issue time
+        # by (session, command id): a restarted planner's ids start again
+        self._pending: dict[tuple[int, int], tuple[Any, float, float, float]] = {}
+        self._stops: dict[tuple[int, int], float] = {}   # STOPs issued, not delivered: issue time
         self._noted: set[str] = set()   # keys with an impossible command noted, until a possible one
         # direction: +1 forward, -1 reverse, 0 held (no command yet), None not judged
         self.direction: int | None = 0
@@ -299,7 +305,7 @@ class Monitor:
         if topic == Topic.SET_SPEED:
             self.last_spss_s = self.now_s
             return
-        pending = self._stops.pop(msg.command_id, None) if msg.kind == "stop" else None
+        pending = self._stops.pop(_key(msg), None) if msg.kind == "stop" else None
         if pending is None or self._manual():
             return
         moving_back = self.speed_mps < -MOVING_MPS or (
@@ -354,21 +360,34 @@ class Monitor:
         if msg.kind == "stop":
             if len(self._stops) >= PENDING_MAX:
                 self._stops.pop(next(iter(self._stops)))
-            self._stops[msg.command_id] = self.now_s   # binds when delivered
+            self._stops[_key(msg)] = self.now_s   # binds when delivered
             return
         if not (msg.distance_m >= 0.0 and msg.maxspeed_mps >= 0.0):
             return   # invalid: the move server must reject it; nothing to hold the vehicle to
         if len(self._pending) >= PENDING_MAX:
             self._pending.pop(next(iter(self._pending)))
-        self._pending[msg.command_id] = (msg, *self._here())
+        self._pending[_key(msg)] = (msg, *self._here())
 
     def _move_reply(self, reply: Any) -> None:
-        """A MOVE / REVERSE binds once the move server accepts it, from where it was issued."""
-        pending = self._pending.pop(reply.command_id, None)
-        if pending is None or not reply.accepted or self._manual():
+        """A MOVE / REVERSE binds once the move server accepts it, from where it was issued;
+        one refused as stale still binds what it restricts (an end closer than the one in
+        force in its direction, a lower max speed): what slows or stops is always obeyed."""
+        pending = self._pending.pop(_key(reply), None)
+        if pending is None or self._manual():
             return
         msg, progress, speed, issued_s = pending
         reverse = msg.kind == "reverse"
+        if not reply.accepted:
+            old = self.ends.get(PLANNER_KEY)
+            if reply.code == "stale" and old is not None and old.reverse == reverse:
+                self._set_end(PLANNER_KEY, msg.distance_m, reverse,
+                              f"stale {msg.kind.upper()} #{msg.command_id} of "
+                              f"{msg.distance_m:g} m", (progress, speed, issued_s))
+                new = self.ends[PLANNER_KEY]
+                if (new.end_m > old.end_m) != reverse:    # further: it may not extend
+                    self.ends[PLANNER_KEY] = old
+                self.command_limit_mps = min(self.command_limit_mps, msg.maxspeed_mps)
+            return
         self._set_end(PLANNER_KEY, msg.distance_m, reverse,
                       f"{msg.kind.upper()} #{msg.command_id} of {msg.distance_m:g} m",
                       (progress, speed, issued_s))
@@ -584,11 +603,11 @@ class Monitor:
         the speed server's pedals must be the emergency stop until an SPSS is delivered; a STOP
         not delivered within ``STOP_DELIVERY_S`` is noted (the stack never had it)."""
         if self._stops:
-            for command_id, issued_s in list(self._stops.items()):
+            for key, issued_s in list(self._stops.items()):
                 if now_s - issued_s > STOP_DELIVERY_S + EPS_S:
-                    del self._stops[command_id]
+                    del self._stops[key]
                     self.notes.append({"t_s": round(issued_s, 3), "kind": "stop_not_delivered",
-                                       "command": f"STOP #{command_id}",
+                                       "command": f"STOP #{key[1]}",
                                        "reason": f"not delivered to the move server within "
                                                  f"{STOP_DELIVERY_S:.1f} s: not judged"})
         if self.last_spss_s is None:

@@ -80,6 +80,7 @@ class ScenarioPlayer:
         self.limits: dict[str, MaxSpeed] = {}
         self.next_refresh_s = 0.0
         self.command_id = 0
+        self.session = 1        # the planner's run: a real planner picks a random 63-bit number
         self.started = False
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
@@ -106,16 +107,21 @@ class ScenarioPlayer:
 
     def _apply(self, event: EventSpec, now_s: float, out: list[tuple[str, Any]]) -> None:
         kind, body = event.kind, event.body
-        if kind in ("move", "reverse", "stop"):
+        if kind == "planner_restart":
+            if body.new_session:
+                self.session += 1   # a new run of the planner: its ids start again
+            self.command_id = 0
+        elif kind in ("move", "reverse", "stop"):
             self.command_id += 1
             if kind == "stop":
-                out.append((Topic.MOVE_COMMAND, MoveCommand(kind="stop", command_id=self.command_id,
-                                                            issued_s=now_s)))
+                out.append((Topic.MOVE_COMMAND, MoveCommand(
+                    kind="stop", command_id=self.command_id, session=self.session,
+                    issued_s=now_s)))
             else:
                 out.append((Topic.MOVE_COMMAND, MoveCommand(
-                    kind=kind, command_id=self.command_id, distance_m=body.distance_m,
-                    maxspeed_mps=body.maxspeed_mps, curvature_1pm=body.curvature_1pm,
-                    issued_s=now_s)))
+                    kind=kind, command_id=self.command_id, session=self.session,
+                    distance_m=body.distance_m, maxspeed_mps=body.maxspeed_mps,
+                    curvature_1pm=body.curvature_1pm, issued_s=now_s)))
         elif kind == "advance":
             out.append((Topic.ADVANCE, AdvanceAuthorization(
                 source=body.source, distance_m=body.distance_m, reverse=body.reverse,

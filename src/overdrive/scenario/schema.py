@@ -158,6 +158,13 @@ class WorldChangeSpec(Spec, frozen=True):
     obstacles: list[Obstacle] | None = None
 
 
+class PlannerRestartSpec(Spec, frozen=True):
+    """The planner restarts: its command ids start again at 1. ``new_session``: it says so with
+    a new session (false: a planner that sends no session, as before sessions existed)."""
+
+    new_session: bool = True
+
+
 class EventSpec(Spec, frozen=True):
     """One timed event: ``at_s`` plus exactly one kind."""
 
@@ -187,6 +194,7 @@ class EventSpec(Spec, frozen=True):
     actuator: ActuatorFaultSpec | None = None
     engine_stall: Empty | None = None
     world: WorldChangeSpec | None = None
+    planner_restart: PlannerRestartSpec | None = None
 
     @property
     def kind(self) -> str:
@@ -201,7 +209,7 @@ EVENT_KINDS = EventSpec.__struct_fields__[1:]
 OPEN_LOOP_KINDS = frozenset({"actuators", "gear", "engine"})
 SPEED_KINDS = frozenset({"set_speed"})
 DRIVING_KINDS = frozenset({"advance", "max_speed", "steer"})
-MOVE_KINDS = frozenset({"move", "reverse", "stop"})
+MOVE_KINDS = frozenset({"move", "reverse", "stop", "planner_restart"})
 
 
 class Window(Spec, frozen=True):

@@ -289,6 +289,12 @@ class SpeedLimits:
     def update(self, source: str, speed_mps: float, now_s: float) -> None:
         self.by_source[source] = (speed_mps, now_s)
 
+    def restrict(self, source: str, speed_mps: float) -> None:
+        """A late message's limit: lowers the source's limit, never raises it nor refreshes it."""
+        if source in self.by_source:
+            limit, received_s = self.by_source[source]
+            self.by_source[source] = (min(limit, speed_mps), received_s)
+
     def lapsed(self, now_s: float) -> bool:
         """A source has gone quiet (its limit counts as 0)."""
         return any(now_s - received_s > self.ttl_s + TIME_EPS_S
@@ -317,6 +323,14 @@ class Authorizations:
 
     def update(self, source: str, reverse: bool, distance_m: float, odometer_m: float) -> None:
         self.by_source[(source, reverse)] = (distance_m, odometer_m)
+
+    def restrict(self, source: str, reverse: bool, end_m: float) -> None:
+        """A late authorization's end (odometer): brings the source's end closer, never
+        further."""
+        if (source, reverse) in self.by_source:
+            distance_m, odometer0_m = self.by_source[(source, reverse)]
+            if end_m < odometer0_m + distance_m:
+                self.by_source[(source, reverse)] = (max(end_m - odometer0_m, 0.0), odometer0_m)
 
     def remaining_m(self, reverse: bool, odometer_m: float) -> float:
         """Shortest remaining distance for the direction; NaN when no source authorized it."""
@@ -513,7 +527,10 @@ class DrivingModule:
         reason = validate_max_speed(msg)
         if reason:
             self._reject("max_speed", reason, out)
-        elif self._in_order(("max_speed", msg.source), msg.issued_s, out):
+        elif not self._in_order(("max_speed", msg.source), msg.issued_s, out):
+            # out of order: a lower limit still applies (what slows is always obeyed)
+            self.limits.restrict(msg.source, float(msg.speed_mps))
+        else:
             why = "" if msg.issued_s is None else self.history.dated(msg.issued_s, now_s)
             if why:
                 self._reject("max_speed", f"max_speed from {msg.source!r}: {why}", out)
@@ -555,6 +572,14 @@ class DrivingModule:
         for msg in self._arrived:
             key = ("advance", msg.source, msg.reverse)
             if not self._in_order(key, msg.issued_s, out):
+                # out of order: a closer end still applies, counted from where the vehicle was
+                # when it was issued (or the earliest reading kept: closer, the safe side)
+                history = self.history_reverse if msg.reverse else self.history
+                progress = self._progress_m(msg.reverse)
+                anchored, _ = history.anchor(msg.issued_s, now_s)
+                start = anchored if anchored is not None else min(progress,
+                                                                  history.earliest_m(progress))
+                self.authorizations.restrict(msg.source, msg.reverse, start + msg.distance_m)
                 continue
             odometer0 = self._progress_m(msg.reverse)
             if msg.issued_s is not None:

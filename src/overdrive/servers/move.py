@@ -183,6 +183,10 @@ class ActiveCommand(msgspec.Struct, frozen=True):
     odometer0_m: float
 
 
+MAX_SESSIONS_KEPT = 64
+"""Planner sessions remembered as earlier ones (a planner restarting every second for a minute)."""
+
+
 # --------------------------------------------------------------------------- node
 
 class MoveServer:
@@ -206,7 +210,9 @@ class MoveServer:
         self.phase = "idle"
         self.active: ActiveCommand | None = None
         self.last_command_id = 0
-        self.newest_command_id: int | None = None   # the newest well-formed command seen
+        self.newest_command_id: int | None = None   # the current session's newest command
+        self.session: int | None = None             # the planner's current session
+        self.sessions_seen: dict[int, None] = {}    # every session seen (insertion order, bounded)
         self.history = OdometerHistory()   # odometer by time: a command counts from its issue
         # issue 16: motion sensing cross-checked; progress is signed along each direction and
         # conservative (forward in ``history``, reverse here)
@@ -459,6 +465,21 @@ class MoveServer:
             obstacle_margin_m=cfg.estop_margin_m)
 
     def _command(self, now_s: float, cmd: Any, out: list) -> None:
+        """``_answer`` with the command's session echoed in its reply."""
+        first = len(out)
+        self._answer(now_s, cmd, out)
+        session = getattr(cmd, "session", 0)
+        if isinstance(session, int) and not isinstance(session, bool) and session:
+            for i in range(first, len(out)):
+                topic, msg = out[i]
+                if topic == Topic.MOVE_REPLY:
+                    out[i] = (topic, msgspec.structs.replace(msg, session=session))
+
+    def _answer(self, now_s: float, cmd: Any, out: list) -> None:
+        """One planner command (rules: docs/move-server.md, "Sessions and staleness"): a STOP
+        acts at once whatever its id, stamp or session; a MOVE / REVERSE that is new goes
+        through the checks; a stale one (an id not newer within the session, or an earlier
+        session) only restricts the command in force."""
         verdict = check_command(cmd, self._situation(now_s), self.params,
                                 self.config.gear_speed_fraction)
         command_id = getattr(cmd, "command_id", 0)
@@ -467,19 +488,27 @@ class MoveServer:
             command_id = 0
         if kind not in ("move", "reverse", "stop"):
             kind = "stop"
-        if verdict is None or verdict.code != "invalid":
-            newest = self.newest_command_id
-            if newest is not None and command_id <= newest:
-                out.append((Topic.MOVE_REPLY, MoveReply(
-                    command_id=command_id, kind=kind, accepted=False, code="stale",
-                    message=f"command_id {command_id} is not newer than {newest}: "
-                            "reordered or repeated")))
+        if verdict is not None and verdict.code == "invalid":
+            if isinstance(cmd, MoveCommand) and cmd.kind == "stop":
+                self._stop(command_id, f"a STOP is always obeyed ({verdict.message})", out)
                 return
-            self.newest_command_id = command_id
-        if verdict is None and kind != "stop":
+            out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
+                                                    accepted=False, code="invalid",
+                                                    message=verdict.message)))
+            return
+        stale = self._staleness(cmd, command_id)
+        if kind == "stop":
+            if not stale:
+                self.last_command_id = command_id
+            self._stop(command_id, f"{stale}: a STOP is always obeyed" if stale else "", out)
+            return
+        if stale:
+            self._restrict(now_s, cmd, command_id, stale, out)
+            return
+        if verdict is None:
             verdict = self._too_steep_to_plan(cmd)
-        odometer0_m = self.progress_m(direction_of(kind) if kind != "stop" else "forward")
-        if verdict is None and kind != "stop" and cmd.issued_s is not None:
+        odometer0_m = self.progress_m(direction_of(kind))
+        if verdict is None and cmd.issued_s is not None:
             history = self.history_reverse if kind == "reverse" else self.history
             anchored, why = history.anchor(cmd.issued_s, now_s)
             if anchored is None:
@@ -499,14 +528,10 @@ class MoveServer:
                                                     message=verdict.message)))
             return
         cmd, clamped = self.corridor.clamp_reverse(cmd, self.gps)   # no rear sensor
-        short = "" if kind == "stop" else self._short_of_a_stop(cmd, odometer0_m, out)
+        short = self._short_of_a_stop(cmd, odometer0_m, out)
         out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind, accepted=True,
                                                 message="; ".join(m for m in (clamped, short) if m))))
         self.last_command_id = command_id
-        if cmd.kind == "stop":
-            self.active = None
-            self._set_phase(next_phase(self.phase, "stop_cmd"))
-            return
         direction = direction_of(cmd.kind)
         if direction != self.direction:
             # the other direction's authorization is void from now on
@@ -543,6 +568,73 @@ class MoveServer:
         return Verdict("infeasible", f"the slope pulls at {downhill_mps2:.2f} m/s^2, more than the "
                                      f"braking plan's {plan_mps2:.2f} m/s^2 on this friction: "
                                      "the vehicle could not stop on it")
+
+    def _staleness(self, cmd: Any, command_id: int) -> str:
+        """Why ``cmd`` is stale ("" when it is new). A session not seen before becomes the
+        current one (a restarted planner: its ids start again); an earlier session's commands
+        and ids not newer than the current session's newest are stale."""
+        session = getattr(cmd, "session", 0)
+        if not isinstance(session, int) or isinstance(session, bool):
+            session = 0
+        if session != self.session:
+            if session in self.sessions_seen:
+                return f"session {session} is not the planner's current session {self.session}"
+            self.session, self.newest_command_id = session, None
+            self.sessions_seen[session] = None
+            while len(self.sessions_seen) > MAX_SESSIONS_KEPT:
+                del self.sessions_seen[next(iter(self.sessions_seen))]
+        newest = self.newest_command_id
+        if newest is not None and command_id <= newest:
+            return f"command_id {command_id} is not newer than {newest}: reordered or repeated"
+        self.newest_command_id = command_id
+        return ""
+
+    def _stop(self, command_id: int, message: str, out: list) -> None:
+        """STOP: accepted and acted on at once."""
+        out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind="stop",
+                                                accepted=True, message=message)))
+        self.active = None
+        self._set_phase(next_phase(self.phase, "stop_cmd"))
+
+    def _restrict(self, now_s: float, cmd: MoveCommand, command_id: int, why: str,
+                  out: list) -> None:
+        """A stale MOVE / REVERSE: its end, if closer than the command in force's, and its max
+        speed, if lower, apply; it never starts, extends or turns motion. Its end counts from
+        where the vehicle was when it was issued; where that cannot be placed, from the
+        earliest reading kept (a closer end: the safe side)."""
+        active = self.active
+        direction = direction_of(cmd.kind)
+        if active is None or direction != active.direction:
+            out.append((Topic.MOVE_REPLY, MoveReply(
+                command_id=command_id, kind=cmd.kind, accepted=False, code="stale",
+                message=f"{why}: not executed (a stale command only restricts the "
+                        f"{'command in force' if active else 'motion'}; none in its direction)")))
+            return
+        history = self.history_reverse if direction == "reverse" else self.history
+        odometer0_m = self.progress_m(direction)
+        if cmd.issued_s is not None:
+            anchored, _ = history.anchor(cmd.issued_s, now_s)
+            odometer0_m = anchored if anchored is not None else min(
+                odometer0_m, history.earliest_m(odometer0_m))
+        old = active.command
+        end_m = min(active.odometer0_m + old.distance_m, odometer0_m + cmd.distance_m)
+        distance_m = max(end_m - active.odometer0_m, 0.0)
+        maxspeed_mps = min(old.maxspeed_mps, cmd.maxspeed_mps)
+        changes = []
+        if distance_m < old.distance_m:
+            changes.append(f"end {old.distance_m - distance_m:.2f} m closer")
+        if maxspeed_mps < old.maxspeed_mps:
+            changes.append(f"max speed {maxspeed_mps:.2f} m/s")
+        if changes:
+            restricted = msgspec.structs.replace(old, distance_m=distance_m,
+                                                 maxspeed_mps=maxspeed_mps)
+            self.active = msgspec.structs.replace(active, command=restricted)
+            self._short_of_a_stop(restricted, active.odometer0_m, out)
+        out.append((Topic.MOVE_REPLY, MoveReply(
+            command_id=command_id, kind=cmd.kind, accepted=False, code="stale",
+            restricted=bool(changes),
+            message=f"{why}: " + (f"restricted only: {', '.join(changes)}" if changes
+                                  else "it restricts nothing of the command in force"))))
 
     def _short_of_a_stop(self, cmd: MoveCommand, odometer0_m: float, out: list) -> str:
         """Seed 004's "vehicle not in the expected position": a command whose distance (left of
