@@ -20,7 +20,6 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -32,9 +31,12 @@ from overdrive.messages import (
 from overdrive.observe.judge import Monitor, physical_decel_mps2
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers import speed as speed_module
 from overdrive.vehicle.plant import Plant, World
 from tests.safety.test_monitor import DT, Clock, move, rules
+
+ESCAPE_HYBRID = PRESETS["escape-hybrid"]
 
 
 def run(vehicle: Any = "escape-hybrid", duration_s: float = 20.0, start: str = "ready",

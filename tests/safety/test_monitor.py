@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID, G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -32,7 +32,10 @@ from overdrive.observe.judge import (
 )
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from tests.conftest import PRESET_NAMES, scenario_dict
+
+ESCAPE_HYBRID = PRESETS["escape-hybrid"]
 
 DT = 0.01
 JUST = (-0.01, -0.001, 0.001, 0.01)   # offsets swept around every bound

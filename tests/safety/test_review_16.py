@@ -6,9 +6,10 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import GpsIns, Imu, Topic, WheelSpeed
 from overdrive.safety.plausibility import PlausibilityFault
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.driving import DrivingModule
 from overdrive.servers.move import MoveServer
 from overdrive.servers.speed import SpeedServer

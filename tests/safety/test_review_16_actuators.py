@@ -6,7 +6,6 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, SetSpeed, Topic, VehicleStatus, WheelSpeed
 from overdrive.safety.actuators import (
     ActuatorFault,
@@ -14,6 +13,7 @@ from overdrive.safety.actuators import (
     PedalMonitor,
     SteeringMonitor,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.speed import SpeedServer
 from tests.conftest import PRESET_NAMES
 

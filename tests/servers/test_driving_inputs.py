@@ -7,7 +7,6 @@ import math
 import pytest
 
 from overdrive.dynamics.ellipse import ellipse_for, max_safe_speed_mps
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -19,6 +18,7 @@ from overdrive.messages import (
     SteeringRequest,
     Topic,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.driving import (
     Authorizations,
     DrivingConfig,

@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, MoveCommand, Radar
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.move_radar import (
     RadarConfig,
     RadarCorridor,
