@@ -21,7 +21,8 @@ from overdrive.dynamics.ellipse import (
     max_safe_speed_mps,
     stopping_distance_m,
 )
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
+from overdrive.scenario.vehicles import PRESETS
 
 PRESET_NAMES = tuple(PRESETS)
 FRICTIONS = (0.3, 0.8, 0.9)

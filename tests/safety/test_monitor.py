@@ -8,7 +8,7 @@ import random
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID, G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -33,8 +33,11 @@ from overdrive.observe.judge import (
 )
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.plant import Plant, World
 from tests.conftest import PRESET_NAMES, scenario_dict
+
+ESCAPE_HYBRID = PRESETS["escape-hybrid"]
 
 DT = 0.01
 JUST = (-0.01, -0.001, 0.001, 0.01)   # offsets swept around every bound

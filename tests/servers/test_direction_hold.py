@@ -8,7 +8,7 @@ import math
 import pytest
 
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.direction_hold import (
     EVENTS,
     SOURCES_AGREE_MPS,

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -24,6 +24,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorEstimates
 from overdrive.servers.move import (
     EVENTS,

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from overdrive.dynamics.vehicle_params import PRESETS, VehicleParams
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -22,6 +22,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.speed import SpeedServer, SpeedServerConfig
 from overdrive.servers.speed_table import STATE_TABLE, STATES, FaultCode
 

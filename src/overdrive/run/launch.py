@@ -49,7 +49,6 @@ from overdrive.bus.access import (
 )
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.observe.judge import DELIVERED_TOPICS
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import open_trace, write_summary
@@ -69,6 +68,7 @@ from overdrive.runtime.scheduling import (
 from overdrive.runtime.wall import WallRuntime
 from overdrive.scenario.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.scenario.schema import Scenario, ScenarioError, parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.plant import ActuatorFaults, World
 from overdrive.vehicle.sim_node import (
     COMMAND_TIMEOUT_S,

@@ -33,6 +33,7 @@ from overdrive.scenario.schema import (
     parse_scenario,
     read_scenario_data,
 )
+from overdrive.scenario.vehicles import names_a_file
 
 JITTERED_KINDS = frozenset({
     "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
@@ -185,9 +186,14 @@ def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
 
 
 def load_raw(path: Path) -> tuple[dict[str, Any], Scenario]:
-    """Read and validate the scenario; return its raw data and the validated scenario."""
+    """Read and validate the scenario; return its raw data and the validated scenario. A
+    vehicle file it names is replaced by the vehicle's parameters (``parse_scenario``), so the
+    samples run in worker processes and are written out without the file."""
     data = read_scenario_data(path)
-    return data, parse_scenario(data, str(path))
+    scenario = parse_scenario(data, str(path), path.parent)
+    if names_a_file(data.get("vehicle")):
+        data = {**data, "vehicle": scenario.spec.vehicle}
+    return data, scenario
 
 
 def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None = None,

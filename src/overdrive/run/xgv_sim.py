@@ -24,12 +24,12 @@ import time
 from collections.abc import Callable
 from typing import Final
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus.judp import JUDP_PORT
 from overdrive.messages import Topic
 from overdrive.runtime.udp import open_udp
 from overdrive.scenario.player import ScenarioPlayer, world_from_spec
 from overdrive.scenario.schema import Scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
 from overdrive.vehicle.xgv import XgvSimulator
 
