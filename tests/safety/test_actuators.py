@@ -210,7 +210,7 @@ def test_steering_monitor_one_onset() -> None:
     assert m.stuck
 
 
-# --------------------------------------------------------------------------- coverage gate (issue 9)
+# --------------------------------------------------------------------------- each limit swept: brake, probe, steering
 
 ESCAPE = PRESETS["escape-hybrid"]
 

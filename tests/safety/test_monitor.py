@@ -603,11 +603,10 @@ def test_acceleration_outside_ellipse(monitor: Monitor) -> None:
 
 def test_world_friction_change_tightens_the_ellipse(monitor: Monitor) -> None:
     from overdrive.vehicle.plant import World
-    from overdrive.vehicle.sim_node import WORLD_TOPIC
 
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
     assert monitor.finish() == []
-    monitor.observe(WORLD_TOPIC, World(friction=0.2))
+    monitor.observe(Topic.SIM_WORLD, World(friction=0.2))
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
     assert "acceleration_ellipse" in monitor.finish()[0]
 

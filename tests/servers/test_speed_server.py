@@ -615,7 +615,7 @@ def test_config_is_a_frozen_msgspec_struct_with_the_seed_defaults():
     assert msgspec.json.decode(msgspec.json.encode(cfg), type=SpeedServerConfig) == cfg
 
 
-# ----------------------------------------------------------------------------- invalid requests fail safe (issue 17)
+# ----------------------------------------------------------------------------- invalid requests fail safe
 
 @pytest.mark.parametrize("speed", [3.0, 8.0])
 def test_a_stop_harder_than_allowed_stops_at_the_allowed_maximum(speed: float):

@@ -347,7 +347,7 @@ def test_discovery_queries_are_answered_as_openjaus_expects() -> None:
     assert sim.stats.unsupported == 1
 
 
-# --------------------------------------------------------------------------- peers (issue 18)
+# --------------------------------------------------------------------------- peers
 
 def test_an_id_is_bound_to_its_address_and_spoofs_are_dropped() -> None:
     from overdrive.jaus import (

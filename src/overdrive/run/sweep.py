@@ -23,6 +23,7 @@ from typing import Any
 
 import yaml
 
+from overdrive.observe.plot import plot_distributions
 from overdrive.observe.provenance import run_provenance
 from overdrive.observe.run_files import finite_json, make_out_dir
 from overdrive.run.sim import run_scenario
@@ -294,8 +295,6 @@ def _stats(values: list[float]) -> dict[str, float] | None:
 
 
 def _plot(results: list[dict[str, Any]], out_png: Path) -> None:
-    from overdrive.observe.plot import plot_distributions
-
     samples = {
         "smallest authorization margin at a stop (m)": [r["authorization_margin_m"] for r in results
                                                 if r["authorization_margin_m"] is not None],
