@@ -86,9 +86,10 @@ lint: check-env
 # overdrive.safety (command gate, watchdog, motion-sensing plausibility, actuator monitoring), the
 # direction hold (no rollback against the gear), the speed table, the vehicle modes and the run
 # judge; measured with the tests below only (each module's own unit tests among them).
-SAFETY_MODULES := overdrive.servers.speed_table overdrive.vehicle.modes overdrive.safety.watchdog \
-                  overdrive.safety.gate overdrive.safety.plausibility overdrive.safety.actuators \
-                  overdrive.servers.direction_hold overdrive.observe.judge
+SAFETY_FILES := $(filter-out %/__init__.py,$(wildcard src/overdrive/safety/*.py))
+SAFETY_MODULES := $(subst /,.,$(patsubst src/%.py,%,$(SAFETY_FILES))) \
+                  overdrive.servers.speed_table overdrive.servers.direction_hold \
+                  overdrive.vehicle.modes overdrive.observe.judge
 SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_monitor.py tests/safety/test_watchdog.py \
                 tests/safety/test_plausibility.py tests/safety/test_actuators.py \
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py \

@@ -11,9 +11,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import load_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.plant import Plant, World
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.scenario.vehicles import PRESETS
 
 PRESET_NAMES = tuple(PRESETS)
 

@@ -10,6 +10,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from overdrive.dynamics.ellipse import (
+    Braking,
+    BrakingCache,
     EnvelopeConfig,
     TractionMonitor,
     braking_distance_m,
@@ -21,7 +23,8 @@ from overdrive.dynamics.ellipse import (
     max_safe_speed_mps,
     stopping_distance_m,
 )
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
+from overdrive.scenario.vehicles import PRESETS
 
 PRESET_NAMES = tuple(PRESETS)
 FRICTIONS = (0.3, 0.8, 0.9)
@@ -220,3 +223,25 @@ def test_traction_control_shrinks_for_the_hold_time():
     p = PRESETS["ranger-6x6"]
     assert ellipse_for(p, 0.8, cfg, tc.shrink(2.0)).lon_mps2 == pytest.approx(
         0.5 * ellipse_for(p, 0.8, cfg).lon_mps2)
+
+
+# --------------------------------------------------------------------------- braking cache
+
+def test_the_braking_cache_gives_what_braking_gives_and_rebuilds_for_a_new_ellipse() -> None:
+    params = PRESETS["escape-hybrid"]
+    one, two = ellipse_for(params, 0.8), ellipse_for(params, 0.5)
+    cache = BrakingCache(size=3)
+    first = cache.get(one, 0.01, 0.02, 0.0)
+    assert cache.get(one, 0.01, 0.02, 0.0) is first, "the same curve and slope: built once"
+    assert cache.get(one, 0.01, 0.02, -0.0) is first, "+0.0 and -0.0 share an entry"
+    for k, grade in ((0.0, 0.0), (0.01, 0.02), (-0.02, 0.1)):
+        got = cache.get(one, k, grade, 0.0)
+        ref = Braking(one, k, grade, 0.0)
+        assert got.stopping_distance_m(10.0, 0.3) == ref.stopping_distance_m(10.0, 0.3)
+        assert got.max_safe_speed_mps(30.0, 0.7) == ref.max_safe_speed_mps(30.0, 0.7)
+    other = cache.get(two, 0.01, 0.02, 0.0)
+    assert other is not first, "another ellipse: nothing kept from the first"
+    assert other.stopping_distance_m(10.0, 0.3) > first.stopping_distance_m(10.0, 0.3)
+    for i in range(5):                                   # bounded: at most ``size`` kept
+        cache.get(two, 0.01 * i, 0.0, 0.0)
+    assert len(cache._by_key) <= 3

@@ -84,7 +84,7 @@ def test_shipped_scenarios_round_trip_through_yaml() -> None:
             yaml.safe_load(yaml.safe_dump(raw)), str(path)).spec
 
 
-# ----------------------------------------------------------------- the YAML loader (issue 18)
+# ----------------------------------------------------------------- the YAML loader
 
 SHIPPED = sorted((Path(__file__).resolve().parent.parent / "scenarios").rglob("*.yaml"))
 LOAD_BOUND = timedelta(seconds=5)   # issue 18: every hostile input ends within 5 s

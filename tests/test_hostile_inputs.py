@@ -23,7 +23,7 @@ import msgspec
 import pytest
 import yaml
 
-from overdrive.dynamics.vehicle_params import PLAUSIBLE_RANGES, PRESETS, vehicle_from_spec
+from overdrive.dynamics.vehicle_params import PLAUSIBLE_RANGES
 from overdrive.messages import Topic, Truth
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import OutDirError, finite_json, make_out_dir
@@ -39,6 +39,7 @@ from overdrive.scenario.safe_yaml import (
     load_yaml,
 )
 from overdrive.scenario.schema import ScenarioError, load_scenario
+from overdrive.scenario.vehicles import PRESETS, vehicle_from_spec
 
 ROOT = Path(__file__).resolve().parent.parent
 BOUND_S = 5.0    # issue 18: every hostile input ends within 5 s

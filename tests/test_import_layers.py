@@ -8,6 +8,8 @@ from __future__ import annotations
 import ast
 import itertools
 import re
+import subprocess
+import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import NamedTuple
@@ -18,18 +20,18 @@ import overdrive
 
 SRC = Path(overdrive.__file__).resolve().parent
 
-LAZY_IMPORTS: dict[tuple[str, str], str] = {
-    # (importer, imported): why it is imported inside a function
-    ("overdrive.cli.observe", "overdrive.run.replay"): "mcap (~110 ms): keeps `overdrive --help` fast",
-    ("overdrive.cli.observe", "overdrive.observe.plot"): "matplotlib (~0.9 s): --help stays fast",
-    ("overdrive.cli.observe", "overdrive.observe.live"): "foxglove-sdk (~90 ms): only for --live",
-    ("overdrive.observe.mcap_log", "overdrive.observe.mcap_writer"): "zstandard: only when writing",
-    ("overdrive.observe.plot", "overdrive.observe.mcap_log"): "mcap: only when plotting a run.mcap",
-    ("overdrive.run.sim", "overdrive.observe.mcap_log"): "mcap: only when run.mcap is recorded",
-    ("overdrive.observe.run_files", "overdrive.observe.plot"): "matplotlib: only for plot.png",
-    ("overdrive.run.sweep", "overdrive.observe.plot"): "matplotlib: only for distributions.png",
+LAZY_IMPORTS: dict[tuple[str, str], tuple[str, str]] = {
+    # (importer, imported): (what the import would load, why it waits); a key ending in "."
+    # is a prefix. Each entry is checked: the import does load that package or those modules.
+    ("overdrive.cli.", "overdrive.run."): ("overdrive.run", "the runners load when a command "
+                                           "runs: `overdrive --help` and node start-up stay fast"),
+    ("overdrive.cli.", "overdrive.scenario."): ("overdrive.scenario", "as above"),
+    ("overdrive.cli.", "overdrive.observe."): ("overdrive.observe", "as above"),
+    ("overdrive.cli.", "overdrive.vehicle."): ("overdrive.vehicle", "as above"),
+    ("overdrive.observe.mcap_log", "overdrive.observe.mcap_writer"): (
+        "zstandard", "only a run that writes run.mcap needs the compressor"),
 }
-"""Function-level imports allowed: each for an optional heavy dependency, never for a circle."""
+"""Function-level imports allowed: each for a heavy dependency, never for a circle."""
 MAX_TOP_MODULES = 3
 
 
@@ -66,7 +68,9 @@ def imports_in(source: str, importer: str, known: Iterable[str]) -> list[Import]
             names: list[str] = []
             if isinstance(child, ast.Import):
                 names = [a.name for a in child.names]
-            elif isinstance(child, ast.ImportFrom) and child.module and child.level == 0:
+            elif isinstance(child, ast.ImportFrom) and child.level:
+                found.append(Import(importer, "<relative import>", lazy, child.lineno))
+            elif isinstance(child, ast.ImportFrom) and child.module:
                 names = [f"{child.module}.{a.name}" for a in child.names]
             for name in names:
                 target = resolve(name)
@@ -136,11 +140,24 @@ def circles(edges: Iterable[tuple[str, str]]) -> list[list[str]]:
     return found
 
 
+def lazy_entry(imp: Import, lazy_allowed: Mapping[tuple[str, str], object]) -> tuple | None:
+    """The allow-list key that covers ``imp`` (exact names, or prefixes ending in ".")."""
+    def covers(key: str, name: str) -> bool:
+        return name.startswith(key) if key.endswith(".") else name == key
+
+    return next((key for key in lazy_allowed
+                 if covers(key[0], imp.importer) and covers(key[1], imp.imported)), None)
+
+
 def breaches(imports: list[Import], layers: tuple[tuple[str, ...], ...],
              lazy_allowed: Mapping[tuple[str, str], str]) -> list[str]:
     """Every rule the imports break, one line each (empty: the layering holds)."""
     out = []
     for imp in imports:
+        if imp.imported == "<relative import>":
+            out.append(f"{imp.importer}:{imp.line}: a relative import (write the full name: "
+                       "the layers are checked by name)")
+            continue
         a, b = layer_of(imp.importer, layers), layer_of(imp.imported, layers)
         if a is None or b is None:
             out.append(f"{imp.importer}:{imp.line} -> {imp.imported}: not in overdrive.LAYERS")
@@ -148,7 +165,7 @@ def breaches(imports: list[Import], layers: tuple[tuple[str, ...], ...],
         if a[1] != b[1] and b[0] >= a[0]:
             how = "sideways" if b[0] == a[0] else "upward"
             out.append(f"{imp.importer}:{imp.line} -> {imp.imported}: {how} import")
-        if imp.lazy and (imp.importer, imp.imported) not in lazy_allowed:
+        if imp.lazy and lazy_entry(imp, lazy_allowed) is None:
             out.append(f"{imp.importer}:{imp.line} -> {imp.imported}: function-level import "
                        "not in LAZY_IMPORTS")
     for group in circles((i.importer, i.imported) for i in imports):
@@ -179,8 +196,27 @@ def test_the_package_keeps_its_layers() -> None:
 
 def test_every_listed_lazy_import_exists() -> None:
     """A stale entry would hide a new one behind its name."""
-    lazy = {(i.importer, i.imported) for i in package_imports() if i.lazy}
-    assert set(LAZY_IMPORTS) - lazy == set()
+    used = {lazy_entry(i, LAZY_IMPORTS) for i in package_imports() if i.lazy}
+    assert set(LAZY_IMPORTS) - used == set()
+
+
+@pytest.mark.parametrize("key", sorted(LAZY_IMPORTS))
+def test_every_lazy_import_is_heavy_and_the_importer_does_not_load_it(key: tuple[str, str]) -> None:
+    """The reason holds: the imported module loads the named package (or is that package),
+    and the importer alone does not."""
+    heavy = LAZY_IMPORTS[key][0]
+    importer = key[0].rstrip(".") if not key[0].endswith(".") else "overdrive.cli.main"
+    imported = sorted({i.imported for i in package_imports()
+                       if i.lazy and lazy_entry(i, {key: ""}) is not None})
+    probe = ("import importlib, sys\n"
+             f"importlib.import_module({importer!r})\n"
+             f"before = any(m == {heavy!r} or m.startswith({heavy + '.'!r}) for m in sys.modules)\n"
+             f"for name in {imported!r}: importlib.import_module(name)\n"
+             f"after = any(m == {heavy!r} or m.startswith({heavy + '.'!r}) for m in sys.modules)\n"
+             "print(before, after)\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          check=True, timeout=120)
+    assert done.stdout.split() == ["False", "True"], (key, done.stdout, done.stderr)
 
 
 def test_at_most_three_modules_at_the_top() -> None:
@@ -196,6 +232,9 @@ def test_every_folder_is_a_layer_and_says_what_it_may_import() -> None:
         assert doc, f"{folder.name}/__init__.py has no docstring"
         words = " ".join(doc.split())
         assert "May import" in words and "Must not import" in words, folder.name
+        number = next(len(overdrive.LAYERS) - rank for rank, layer in enumerate(overdrive.LAYERS)
+                      if folder.name in layer)
+        assert f"Layer {number}" in words, f"{folder.name}: its docstring names another layer"
 
 
 # ------------------------------------------------------------------------ the checker fails
@@ -240,6 +279,18 @@ def test_checker_finds_an_unlisted_function_level_import() -> None:
     assert _check({"overdrive.top.x": source}, {("overdrive.top.x", "overdrive.low.w"): "ok"}) == []
 
 
+def test_checker_refuses_a_relative_import() -> None:
+    imports = imports_in("from ..top import x\n", "overdrive.low.w", KNOWN)
+    assert breaches(imports, LAYERS, {}) == [
+        "overdrive.low.w:1: a relative import (write the full name: the layers are checked by name)"]
+
+
+def test_checker_allows_a_listed_prefix_of_lazy_imports() -> None:
+    source = "def g():\n    from overdrive.low.w import f\n"
+    assert _check({"overdrive.top.x": source}, {("overdrive.top.", "overdrive.low."): "ok"}) == []
+    assert _check({"overdrive.top.x": source}, {("overdrive.mid_a.", "overdrive.low."): "ok"}) != []
+
+
 def test_checker_finds_a_folder_circle() -> None:
     found = _check({"overdrive.low.w": "from overdrive.top.x import f\n",
                     "overdrive.top.x": "from overdrive.low.w import g\n"})
@@ -257,12 +308,25 @@ def test_checker_finds_a_module_outside_every_layer(name: str) -> None:
 
 SANS_IO = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus", "scenario")
 """Logic and codecs: the time is passed in, bytes go in and out; no clock, no socket, no thread."""
+NO_FILES = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus")
+"""...and, but for the scenario files the scenario layer reads, no file either."""
 EDGE_MODULES = frozenset({"socket", "select", "selectors", "threading", "time", "asyncio"})
+FILE_MODULES = frozenset({"os", "pathlib", "io", "shutil", "tempfile", "importlib"})
+SOCKET_OWNERS = ("runtime/udp.py", "runtime/ports.py")
+"""Where sockets are made: UDP for every JAUS edge; TCP probes when picking listener ports."""
 
 
-def _stdlib_imports(path: Path) -> set[str]:
+def _sources(groups: tuple[str, ...]) -> list[Path]:
+    paths: list[Path] = []
+    for group in groups:
+        paths += [SRC / f"{group}.py"] if (SRC / f"{group}.py").exists() else \
+            sorted((SRC / group).rglob("*.py"))
+    return paths
+
+
+def _imported_roots(tree: ast.AST) -> set[str]:
     names = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names |= {a.name.split(".")[0] for a in node.names}
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
@@ -270,15 +334,48 @@ def _stdlib_imports(path: Path) -> set[str]:
     return names
 
 
+def _calls(tree: ast.AST, name: str) -> list[int]:
+    """Lines calling ``name`` (``open``, ``socket.socket``) or ``__import__``."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            dotted = f.id if isinstance(f, ast.Name) else (
+                f"{f.value.id}.{f.attr}" if isinstance(f, ast.Attribute)
+                and isinstance(f.value, ast.Name) else "")
+            if dotted in (name, "__import__"):
+                found.append(node.lineno)
+    return found
+
+
 def test_logic_and_codecs_touch_no_clock_socket_or_thread() -> None:
     found = []
-    for group in SANS_IO:
-        paths = [SRC / f"{group}.py"] if (SRC / f"{group}.py").exists() else \
-            sorted((SRC / group).rglob("*.py"))
-        for path in paths:
-            if bad := _stdlib_imports(path) & EDGE_MODULES:
-                found.append(f"{path.relative_to(SRC)}: imports {', '.join(sorted(bad))}")
+    for path in _sources(SANS_IO):
+        if bad := _imported_roots(ast.parse(path.read_text(encoding="utf-8"))) & EDGE_MODULES:
+            found.append(f"{path.relative_to(SRC)}: imports {', '.join(sorted(bad))}")
     assert found == []
+
+
+def test_logic_and_codecs_read_no_file() -> None:
+    found = []
+    for path in _sources(NO_FILES):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        if bad := _imported_roots(tree) & FILE_MODULES:
+            found.append(f"{path.relative_to(SRC)}: imports {', '.join(sorted(bad))}")
+        found += [f"{path.relative_to(SRC)}:{line}: opens a file" for line in _calls(tree, "open")]
+    assert found == []
+
+
+def test_sockets_are_made_in_the_runtime_edge_only() -> None:
+    makers = []
+    for path in sorted(SRC.rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        lines = _calls(tree, "socket.socket")
+        lines += [n.lineno for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                  and n.module == "socket" and any(a.name == "socket" for a in n.names)]
+        if lines:
+            makers.append(str(path.relative_to(SRC)))
+    assert sorted(makers) == sorted(SOCKET_OWNERS)
 
 
 def test_one_module_opens_udp_sockets() -> None:

@@ -157,21 +157,21 @@ def test_gear_shift_takes_time_and_no_drive_meanwhile(preset: VehicleParams) -> 
 
 
 def test_ranger_refuses_to_shift_while_moving() -> None:
-    from overdrive.dynamics.vehicle_params import RANGER_6X6
+    from overdrive.scenario.vehicles import PRESETS
 
-    plant = moving_plant(RANGER_6X6, 3.0)
+    plant = moving_plant(PRESETS["ranger-6x6"], 3.0)
     plant.step(DT_S, 0.0, 0.0, 0.0, "low", True)
-    assert plant.shift_refused and plant.gear == RANGER_6X6.drive_gear
+    assert plant.shift_refused and plant.gear == PRESETS["ranger-6x6"].drive_gear
 
 
 def test_gear_top_speed_caps_speed() -> None:
-    from overdrive.dynamics.vehicle_params import RANGER_6X6
+    from overdrive.scenario.vehicles import PRESETS
 
-    plant = moving_plant(RANGER_6X6, 0.0, World(friction=1.0))
+    plant = moving_plant(PRESETS["ranger-6x6"], 0.0, World(friction=1.0))
     plant.gear = "low6wd"
     for _ in range(6000):
         plant.step(DT_S, 100.0, 0.0, 0.0, "low6wd", True)
-    assert plant.speed_mps <= RANGER_6X6.gear("low6wd").max_speed_mps
+    assert plant.speed_mps <= PRESETS["ranger-6x6"].gear("low6wd").max_speed_mps
 
 
 def test_radar_sees_obstacle_ahead_not_behind(preset: VehicleParams) -> None:

@@ -33,6 +33,8 @@ class Topic:
     """Topic names. One publisher per topic unless noted."""
 
     MOVE_COMMAND = "move/command"            # planner -> move server (MoveCommand)
+    SIM_WORLD = "sim/world"                  # scenario -> simulator: a new World (obstacles, friction)
+    SIM_FAULTS = "sim/faults"                # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
     MOVE_REPLY = "move/reply"                # move server -> planner (MoveReply)
     MOVE_STATUS = "move/status"              # move server -> anyone (MoveStatus)
     STEERING = "driving/steering"            # path controller / move server -> driving (SteeringRequest)

@@ -18,10 +18,10 @@ from pathlib import Path
 import pytest
 from processes import openjaus_vehicle_sim
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import JausId
 from overdrive.messages import PedalCommand, Topic
 from overdrive.runtime.xgv_link import UdpPort
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv_client import REGISTRATION_SETTLE_S, XgvClient, XgvClientConfig
 
 pytestmark = pytest.mark.interop

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.safety.actuators import (
     ActuatorFault,
     ActuatorMonitorConfig,
@@ -17,6 +17,7 @@ from overdrive.safety.actuators import (
     SteeringMonitor,
     brake_ratio,
 )
+from overdrive.scenario.vehicles import PRESETS
 from tests.conftest import PRESET_NAMES
 
 CFG = ActuatorMonitorConfig(probe_enabled=True)
@@ -209,7 +210,7 @@ def test_steering_monitor_one_onset() -> None:
     assert m.stuck
 
 
-# --------------------------------------------------------------------------- coverage gate (issue 9)
+# --------------------------------------------------------------------------- each limit swept: brake, probe, steering
 
 ESCAPE = PRESETS["escape-hybrid"]
 

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.safety.actuators import (
     ActuatorFault,
     ActuatorMonitorConfig,
     PedalMonitor,
     SteeringMonitor,
 )
+from overdrive.scenario.vehicles import PRESETS
 
 CFG = ActuatorMonitorConfig()
 

@@ -12,9 +12,10 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import load_scenario, parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers import gear_hints
 from overdrive.servers.speed_hints import HintMonitor
 from tests.conftest import PRESET_NAMES

@@ -11,9 +11,9 @@ import msgspec
 import pytest
 
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.direction_hold import DirectionHoldConfig
 
 HOLD = DirectionHoldConfig()

@@ -12,9 +12,9 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.move_radar import RadarConfig, RadarFault
 from tests.conftest import PRESET_NAMES
 

@@ -26,9 +26,9 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers import speed as speed_module
 from overdrive.servers.direction_hold import FREE, DirectionFault
 from overdrive.servers.move_radar import RadarConfig

@@ -8,11 +8,11 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, Imu, Topic, WheelSpeed
 from overdrive.run.sim import run_scenario
 from overdrive.safety.plausibility import PlausibilityFault
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.move import MoveServer
 from tests.conftest import PRESET_NAMES
 

@@ -161,10 +161,10 @@ def test_freeze_repeats_the_last_real_reading_from_its_first_use() -> None:
 
 
 def test_vehicle_sim_keeps_the_last_readings_without_any_fault() -> None:
-    from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
+    from overdrive.scenario.vehicles import PRESETS
     from overdrive.vehicle.plant import World
 
-    sim = VehicleSim(ESCAPE_HYBRID, World(), 1, ready=True)
+    sim = VehicleSim(PRESETS["escape-hybrid"], World(), 1, ready=True)
     sim.step(0.0, [])
     assert Topic.GPS_INS in sim.last_readings and Topic.WHEEL_SPEED in sim.last_readings
 
@@ -584,11 +584,11 @@ def test_a_lapsed_limit_source_stops_the_vehicle_gently() -> None:
 
 
 def test_the_computer_cannot_switch_the_engine_under_manual_override() -> None:
-    from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
     from overdrive.messages import PowertrainCommand, SafetyDevices
+    from overdrive.scenario.vehicles import PRESETS
     from overdrive.vehicle.plant import World
 
-    sim = VehicleSim(ESCAPE_HYBRID, World(), 1, ready=True)
+    sim = VehicleSim(PRESETS["escape-hybrid"], World(), 1, ready=True)
     sim.step(0.0, [(Topic.SAFETY, SafetyDevices(manual_override=True))])
     off = PowertrainCommand(gear="drive", engine_on=False, source="speed")
     for i in range(1, 100):

@@ -8,7 +8,7 @@ import random
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID, G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     MaxSpeed,
@@ -33,8 +33,11 @@ from overdrive.observe.judge import (
 )
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.plant import Plant, World
 from tests.conftest import PRESET_NAMES, scenario_dict
+
+ESCAPE_HYBRID = PRESETS["escape-hybrid"]
 
 DT = 0.01
 JUST = (-0.01, -0.001, 0.001, 0.01)   # offsets swept around every bound
@@ -657,11 +660,10 @@ def test_acceleration_outside_ellipse(monitor: Monitor) -> None:
 
 def test_world_friction_change_tightens_the_ellipse(monitor: Monitor) -> None:
     from overdrive.vehicle.plant import World
-    from overdrive.vehicle.sim_node import WORLD_TOPIC
 
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
     assert monitor.finish() == []
-    monitor.observe(WORLD_TOPIC, World(friction=0.2))
+    monitor.observe(Topic.SIM_WORLD, World(friction=0.2))
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
     assert "acceleration_ellipse" in monitor.finish()[0]
 

@@ -238,7 +238,7 @@ def test_a_silent_source_is_not_live_and_gives_no_speed() -> None:
     assert bench.codes() == [], "silence is the speed server's sensor timeout, not a plausibility fault"
 
 
-# --------------------------------------------------------------------------- coverage gate (issue 9)
+# --------------------------------------------------------------------------- which source is trusted, a step with no direction
 
 @pytest.mark.parametrize(("frozen", "untrusted"), [
     ("gps_ins", "gps_ins"), ("wheel_speed", "wheel_speed"), ("imu", "imu"), (None, None)])

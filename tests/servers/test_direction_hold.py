@@ -8,7 +8,7 @@ import math
 import pytest
 
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.direction_hold import (
     EVENTS,
     SOURCES_AGREE_MPS,
@@ -304,7 +304,7 @@ def test_reset_forgets_the_state_but_not_the_failed_grades() -> None:
     assert d.gear.name in d.hold.failed_pull_mps2
 
 
-# --------------------------------------------------------------------------- review of issue 16
+# --------------------------------------------------------------------------- noisy readings near a standstill
 
 @pytest.mark.parametrize(("periods", "caught"), [(CFG.rollback_periods - 1, False),
                                                  (CFG.rollback_periods, True)])
@@ -333,7 +333,7 @@ def test_a_retry_waits_for_full_drive_only_uphill(grade_pct: float, needs_full: 
     assert (d.hold.state == "holding") is needs_full
 
 
-# --------------------------------------------------------------------------- coverage gate (issue 9)
+# --------------------------------------------------------------------------- timeouts and the hold that never releases
 
 @pytest.mark.parametrize(("periods", "fault"), [(round(CFG.hold_timeout_s / DT_S) - 1, False),
                                                 (round(CFG.hold_timeout_s / DT_S), True)])

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import load_scenario, parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 
 PRESET_NAMES = tuple(PRESETS)
 SCENARIOS = sorted((Path(__file__).parents[2] / "scenarios").glob("driving-*.yaml"))

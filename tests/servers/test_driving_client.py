@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import AdvanceAuthorization, DriveMode, MaxSpeed, Topic
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.driving import (
     REQUEST_TOWARD,
     SPEED_STATES,

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from overdrive.dynamics.ellipse import ellipse_for, max_safe_speed_mps
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -23,6 +23,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.plausibility import PlausibilityFault
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.driving import (
     Authorizations,
     DrivingConfig,

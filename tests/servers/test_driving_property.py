@@ -11,8 +11,9 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from overdrive.dynamics.ellipse import braking_distance_m, ellipse_for, load_axes_mps2
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import AdvanceAuthorization, MaxSpeed, SteeringRequest, Topic
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.driving import DrivingConfig
 from tests.servers.driving_harness import DT_S, IdealLoop, outputs
 

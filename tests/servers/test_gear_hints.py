@@ -8,7 +8,8 @@ import math
 import msgspec
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.driving import DrivingConfig
 from overdrive.servers.gear_hints import (
     GearHintConfig,

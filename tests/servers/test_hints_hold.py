@@ -11,7 +11,7 @@ import msgspec
 import pytest
 
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.dynamics.vehicle_params import PRESETS
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.direction_hold import DirectionFault, DirectionHold, DirectionHoldConfig
 from overdrive.servers.speed_hints import HintConfig, HintMonitor
 from tests.conftest import PRESET_NAMES

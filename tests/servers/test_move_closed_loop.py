@@ -9,12 +9,12 @@ import pytest
 
 from overdrive.bus.local import LocalBus
 from overdrive.dynamics.ellipse import ellipse_for
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import Topic
 from overdrive.run.move_sim import simulation_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.runtime.lockstep import LockstepRuntime
 from overdrive.scenario.schema import load_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.adaptive import ESTIMATES_TOPIC
 from tests.servers.move_harness import simulate
 

@@ -60,8 +60,8 @@ def test_malformed_messages_are_invalid(preset) -> None:
 @given(st.floats(allow_nan=True, allow_infinity=True), st.floats(allow_nan=True, allow_infinity=True),
        st.floats(allow_nan=True, allow_infinity=True))
 def test_property_no_crash_and_non_finite_never_accepted(d: float, v: float, k: float) -> None:
-    from overdrive.dynamics.vehicle_params import ESCAPE_HYBRID
-    verdict = check_command(move(distance=d, speed=v, curvature=k), OK, ESCAPE_HYBRID)
+    from overdrive.scenario.vehicles import PRESETS
+    verdict = check_command(move(distance=d, speed=v, curvature=k), OK, PRESETS["escape-hybrid"])
     if not all(math.isfinite(x) for x in (d, v, k)) or d < 0 or v < 0:
         assert verdict is not None and verdict.code == "invalid"
     else:

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     GpsIns,
@@ -19,6 +19,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.move import MoveServer
 from overdrive.servers.move_radar import (
     RadarConfig,

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS
+from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
@@ -24,6 +24,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorEstimates
 from overdrive.servers.move import (
     EVENTS,
@@ -312,7 +313,7 @@ def test_speed_reduction_notice_when_it_starts(preset) -> None:
     assert codes == ["steep"]
 
 
-# ----------------------------------------------------------------------------- ordering (issue 17)
+# ----------------------------------------------------------------------------- ordering
 
 @pytest.mark.parametrize("older", [0, 1, 2])
 def test_a_stale_command_never_extends_the_command_in_force(preset, older: int) -> None:
@@ -437,7 +438,7 @@ def test_a_rejected_command_raises_the_bar_but_a_malformed_one_does_not(preset) 
     assert last(out, Topic.MOVE_REPLY).accepted, "a malformed id 99 must not lock out id 6"
 
 
-# ----------------------------------------------------------------------------- interruptions (issue 17)
+# ----------------------------------------------------------------------------- interruptions
 
 @pytest.mark.parametrize(("mode", "engine", "hold"), [
     ("estop-pause", "running", "paused"), ("software-pause", "running", "paused"),
@@ -499,7 +500,7 @@ def test_a_radar_estop_is_not_overridden_by_an_interruption(preset) -> None:
 
 
 
-# ----------------------------------------------------------------------------- anchored in time (issue 17)
+# ----------------------------------------------------------------------------- anchored in time
 
 @pytest.mark.parametrize("delay_s", [0.0, 0.2, 0.5])
 def test_a_command_counts_from_where_the_vehicle_was_when_it_was_issued(preset, delay_s: float) -> None:

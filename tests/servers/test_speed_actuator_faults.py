@@ -9,9 +9,11 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import GpsIns, SetSpeed, Topic, VehicleStatus, WheelSpeed
-from overdrive.safety.actuators import ActuatorFault
+from overdrive.safety.actuators import (
+    ActuatorFault,
+)
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.speed import SpeedServer
 from tests.conftest import PRESET_NAMES
 

@@ -12,9 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from overdrive import messages
-from overdrive.dynamics.vehicle_params import G_MPS2, PRESETS, VehicleParams
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.speed import SpeedServerConfig
 from overdrive.servers.speed_hints import HINTS, HintConfig, HintInputs, HintMonitor
 from tests.conftest import PRESET_NAMES

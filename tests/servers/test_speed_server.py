@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from overdrive.dynamics.vehicle_params import PRESETS, VehicleParams
+from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import (
     GpsIns,
     Imu,
@@ -22,6 +22,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.speed import SpeedServer, SpeedServerConfig
 from overdrive.servers.speed_table import STATE_TABLE, STATES, FaultCode
 
@@ -614,7 +615,7 @@ def test_config_is_a_frozen_msgspec_struct_with_the_seed_defaults():
     assert msgspec.json.decode(msgspec.json.encode(cfg), type=SpeedServerConfig) == cfg
 
 
-# ----------------------------------------------------------------------------- invalid requests fail safe (issue 17)
+# ----------------------------------------------------------------------------- invalid requests fail safe
 
 @pytest.mark.parametrize("speed", [3.0, 8.0])
 def test_a_stop_harder_than_allowed_stops_at_the_allowed_maximum(speed: float):

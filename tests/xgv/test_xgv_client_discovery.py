@@ -4,7 +4,6 @@ control) in its system tree. Sans-IO: datagrams in, datagrams out."""
 
 from __future__ import annotations
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import (
     ConfirmComponentControl,
     JausId,
@@ -22,6 +21,7 @@ from overdrive.jaus import (
     decode_datagram,
     encode_datagram,
 )
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv_client import (
     NM_HEARTBEAT_PERIOD_S,
     REGISTRATION_GRACE_S,

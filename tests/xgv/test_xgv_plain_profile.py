@@ -13,7 +13,6 @@ import pytest
 from click.testing import CliRunner
 
 from overdrive.cli.main import main
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import (
     ComponentStatus,
     ConfirmComponentControl,
@@ -37,6 +36,7 @@ from overdrive.messages import GpsIns, Topic, VehicleStatus
 from overdrive.run.compose import build_servers, lockstep_nodes, plain_profile_problem
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import Scenario, load_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.plain_jaus import (
     DEFAULT_POSITION_RMS_M,
     JUMP_NOISE_SIGMAS,

@@ -15,11 +15,11 @@ import yaml
 from click.testing import CliRunner
 
 from overdrive.cli.main import main
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.messages import PedalCommand, SteerCommand, Topic
 from overdrive.run.sim import run_scenario
 from overdrive.runtime.xgv_link import LoopbackLink
 from overdrive.scenario.schema import Scenario, load_scenario, parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv_client import ESTOP_DECEL_MPS2, XgvClient, XgvClientConfig
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"

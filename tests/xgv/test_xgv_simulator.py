@@ -7,7 +7,6 @@ import random
 import msgspec
 import pytest
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import (
     ActivateServiceConnection,
     ConfirmComponentControl,
@@ -44,6 +43,7 @@ from overdrive.jaus import (
     encode_datagram,
 )
 from overdrive.messages import SafetyDevices
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv import LAPSE_DECEL_MPS2, gear_codes, gear_from_code, jaus_timestamp
 from tests.xgv.xgv_helpers import CLIENT, MPD, NM, OTHER, Peer, make_sim
 
@@ -347,7 +347,7 @@ def test_discovery_queries_are_answered_as_openjaus_expects() -> None:
     assert sim.stats.unsupported == 1
 
 
-# --------------------------------------------------------------------------- peers (issue 18)
+# --------------------------------------------------------------------------- peers
 
 def test_an_id_is_bound_to_its_address_and_spoofs_are_dropped() -> None:
     from overdrive.jaus import (

@@ -9,8 +9,8 @@ from typing import Any
 
 import msgspec
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus import Header, JausId, Message, decode_datagram, encode_datagram
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv import XgvSimulator
 
 CLIENT = JausId(1, 2, 4, 1)

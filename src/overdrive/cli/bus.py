@@ -30,17 +30,6 @@ from overdrive.bus.zenoh_bus import (
     open_bus,
 )
 from overdrive.cli.summary import print_summary
-from overdrive.observe.run_files import OutDirError, make_out_dir
-from overdrive.run.launch import (
-    UNAVAILABLE,
-    Launch,
-    check_launchable,
-    preset_scenario,
-    run_node,
-    stack_registry,
-)
-from overdrive.run.sim import default_out_dir
-from overdrive.scenario.schema import ScenarioError, load_scenario
 
 EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
 NODE_CHOICES = ("move", "driving", "speed", "vehicle-sim", "xgv-client")
@@ -59,6 +48,8 @@ def _usage(message: str) -> None:
 
 
 def _load(path: Path) -> Any:
+    from overdrive.scenario.schema import ScenarioError, load_scenario
+
     try:
         return load_scenario(path)
     except ScenarioError as exc:
@@ -101,6 +92,10 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
          duration_s: float | None, rt_priority: bool, zenoh_config: str | None, user: str | None,
          allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
+    from overdrive.observe.run_files import OutDirError, make_out_dir
+    from overdrive.run.launch import UNAVAILABLE, preset_scenario, run_node
+    from overdrive.scenario.schema import ScenarioError
+
     if name in UNAVAILABLE:
         _usage(f"node {name}: {UNAVAILABLE[name]}")
     if not listen and not connect:
@@ -154,6 +149,11 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
            credentials: str | None, no_plot: bool, rt_priority: bool, quiet: bool, open_bus: bool,
            zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
+    from overdrive.observe.run_files import OutDirError, make_out_dir
+    from overdrive.run.launch import Launch, check_launchable
+    from overdrive.run.sim import default_out_dir
+    from overdrive.scenario.schema import ScenarioError
+
     del user  # each process uses its node name
     loaded = _load(scenario)
     actions = [_parse_action(k, "kill") for k in kills]
@@ -225,6 +225,8 @@ def _client(connect: tuple[str, ...], sender: str, vehicle: str, zenoh_config: s
             user: str | None, allow_remote: bool, wait_s: float = CONNECT_WAIT_S,
             password: str | None = None) -> Any:
     """A client session to a running launch; retries for ``wait_s`` (it may be starting)."""
+    from overdrive.run.launch import stack_registry
+
     deadline = time.monotonic() + wait_s
     while True:
         try:
@@ -261,6 +263,8 @@ def pub(topic: str, data: str, type_name: str | None, sender: str, count: int, r
 
     A locked-down launch (the default) admits a tool only with ``--run RUN_DIR`` and lets it
     write only ``events``; everything else is denied and counted in the run's summary."""
+    from overdrive.run.launch import stack_registry
+
     registry = stack_registry()
     try:
         check_topic(topic)
@@ -392,6 +396,8 @@ def echo(topic: str, count: int | None, timeout_s: float | None, connect: tuple[
 def gate(public: str, listen: str, connect: tuple[str, ...], access_dir: Path,
          report: Path | None, ready_path: Path | None, vehicle: str, allow_remote: bool) -> None:
     """The tool gate of a locked-down launch (started by ``overdrive launch``)."""
+    from overdrive.run.launch import stack_registry
+
     try:
         for endpoint in (public, listen, *connect):
             _check_endpoint(endpoint, allow_remote)

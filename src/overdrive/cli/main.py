@@ -18,15 +18,6 @@ from overdrive.cli.bus import echo, launch, node, pub
 from overdrive.cli.jaus import jaus
 from overdrive.cli.observe import COMMANDS, start_live
 from overdrive.cli.summary import print_summary
-from overdrive.observe.run_files import OutDirError, make_out_dir
-from overdrive.run.compose import plain_profile_problem
-from overdrive.run.drive import run_drive
-from overdrive.run.move_sim import simulation_nodes
-from overdrive.run.sim import default_out_dir, run_scenario
-from overdrive.run.sweep import default_jobs, sweep
-from overdrive.run.xgv_sim import XgvServer
-from overdrive.scenario.schema import ScenarioError, load_scenario, parse_scenario
-from overdrive.vehicle.plant import World
 
 EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
 
@@ -57,6 +48,10 @@ def main() -> None:
 def sim(scenario: Path, out_dir: Path | None, seed: int | None, realtime: bool, quiet: bool,
         live: bool, live_port: int) -> None:
     """Run SCENARIO against the simulated vehicle and write the run folder."""
+    from overdrive.observe.run_files import OutDirError, make_out_dir
+    from overdrive.run.sim import default_out_dir, run_scenario
+    from overdrive.scenario.schema import ScenarioError, load_scenario
+
     observers = []
     if live:
         observers.append(start_live(live_port))
@@ -107,6 +102,10 @@ def sweep_command(scenario: Path, runs: int, jobs: int | None, out_dir: Path | N
     safety-invariant violation."""
     import time
 
+    from overdrive.observe.run_files import OutDirError
+    from overdrive.run.sweep import default_jobs, sweep
+    from overdrive.scenario.schema import ScenarioError
+
     out = out_dir or Path("runs") / f"sweep-{scenario.stem}-{time.strftime('%Y%m%d-%H%M%S')}"
     try:
         report = sweep(scenario, runs, jobs or default_jobs(), out, seed)
@@ -155,6 +154,12 @@ def print_sweep(report: dict, out: Path) -> None:
 def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_dir: Path | None,
                 quiet: bool) -> None:
     """Run the move server. With -s: offline, against the simulated vehicle and a fake planner."""
+    from overdrive.observe.run_files import OutDirError, make_out_dir
+    from overdrive.run.move_sim import simulation_nodes
+    from overdrive.run.sim import default_out_dir, run_scenario
+    from overdrive.scenario.schema import parse_scenario
+    from overdrive.vehicle.plant import World
+
     if not simulate:
         fail_usage("move-server runs offline with -s; on a vehicle run `overdrive node move`")
     scenario = parse_scenario({"name": f"move-server-sim-{vehicle}", "vehicle": vehicle,
@@ -194,6 +199,9 @@ def _host_port(text: str, default_port: int, what: str) -> tuple[str, int]:
               help="Stop after this long (default: run until interrupted).")
 def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | None) -> None:
     """A simulated ByWire XGV speaking JAUS 3.3 over JUDP/UDP, in wall-clock time."""
+    from overdrive.run.xgv_sim import XgvServer
+    from overdrive.scenario.schema import ScenarioError, load_scenario
+
     loaded = None
     if scenario is not None:
         try:
@@ -230,6 +238,12 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
 def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool,
           profile: str) -> None:
     """Run the control stack against a real or simulated XGV over JAUS, in wall-clock time."""
+    from overdrive.observe.run_files import OutDirError, make_out_dir
+    from overdrive.run.compose import plain_profile_problem
+    from overdrive.run.drive import run_drive
+    from overdrive.run.sim import default_out_dir
+    from overdrive.scenario.schema import ScenarioError, load_scenario
+
     remote = _host_port(xgv, 3794, "--xgv")
     local = _host_port(bind, 0, "--bind")
     try:

@@ -13,9 +13,6 @@ from typing import Any
 
 import click
 
-from overdrive.observe.run_files import OutDirError, make_out_dir
-from overdrive.scenario.schema import ScenarioError
-
 EXIT_OK, EXIT_DIFFERENT, EXIT_USAGE = 0, 1, 2
 
 
@@ -39,6 +36,7 @@ def replay(recording: Path, as_json: bool) -> None:
     """
     from overdrive.run.replay import ReplayError
     from overdrive.run.replay import replay as run_replay
+    from overdrive.scenario.schema import ScenarioError
     path = recording / "run.mcap" if recording.is_dir() else recording
     if not path.is_file():
         _fail(f"{path}: no such file")
@@ -63,6 +61,7 @@ def plot(run: Path, out_png: Path | None) -> None:
     acceleration against the ellipse limits, pedals, speed states, safety modes and gears,
     and the path with obstacles and authorizations."""
     from overdrive.observe.plot import plot_source
+    from overdrive.observe.run_files import OutDirError, make_out_dir
     try:
         if out_png is not None:
             make_out_dir(out_png.parent, f"--out {out_png}: its folder")

@@ -1,14 +1,21 @@
-"""Vehicle presets: every physical parameter the plant, the dynamics model and the servers use.
+"""Vehicle parameters: every physical parameter the plant, the dynamics model and the servers
+use, their plausible ranges and their validation (plain data in, ``VehicleParams`` or a
+``VehicleSpecError`` naming the field out).
 
-Two presets come from the seeds: ``escape-hybrid`` (the ByWire XGV base vehicle, a 2005-2008
-Ford Escape Hybrid, gears P/R/N/D/L) and ``ranger-6x6`` (Team Overbot's Polaris Ranger 6x6,
-gears neutral/low6wd/low/high/reverse). A scenario may override any field by name.
-Numbers come from manufacturer data where it exists; the rest are stated engineering estimates.
+The vehicles themselves are files, one per vehicle (``dynamics/vehicles/*.yaml``: every number
+with its source); ``overdrive.scenario.vehicles`` reads them, with the hostile-input-safe
+reader, into ``PRESETS``. This module reads no file. Two presets ship: ``escape-hybrid`` (the
+ByWire XGV base vehicle, a 2005-2008 Ford Escape Hybrid, gears P/R/N/D/L) and ``ranger-6x6``
+(Team Overbot's Polaris Ranger 6x6, gears neutral/low6wd/low/high/reverse). A scenario may
+override any parameter by name.
 """
 
 from __future__ import annotations
 
+import difflib
 import math
+import re
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import msgspec
@@ -125,65 +132,6 @@ class GearTable:
         return gear.direction if gear is not None else 0
 
 
-MPH = 0.44704  # m/s per mph
-
-ESCAPE_HYBRID = VehicleParams(
-    preset="escape-hybrid",
-    # Ford Escape Hybrid 2005: 174.9 in long, 70.1 in wide, 103.1 in wheelbase
-    length_m=4.44, width_m=1.78, wheelbase_m=2.62, rear_overhang_m=0.92,
-    mass_kg=1700.0,                  # 1,660 kg curb + XGV equipment
-    drag_area_m2=0.42 * 2.4,         # Cd 0.42, frontal area 2.4 m^2
-    rolling_resistance=0.012,
-    driven_weight_fraction=0.6,      # front-wheel drive, ~60 % of the weight on the front axle
-    max_power_w=115_000.0,           # 155 hp combined system output
-    idle_rpm=800.0, redline_rpm=5500.0,
-    gears=(
-        Gear("park", 0, 0.0, 0.0, holds=True),
-        Gear("reverse", -1, 9.0, 5000.0),
-        Gear("neutral", 0, 0.0, 0.0),
-        Gear("drive", 1, 45.0, 5200.0),
-        Gear("low", 1, 20.0, 6000.0),   # eCVT "L": engine braking, capped for the stack
-    ),
-    park_gear="park", drive_gear="drive", low_gear="low", reverse_gear="reverse",
-    shift_time_s=0.5, shift_only_stopped=False, crank_time_s=1.2,
-    max_brake_decel_mps2=9.0,
-    max_steer_rad=math.atan(2.62 / 5.6),   # 11.6 m curb-to-curb turning circle
-    steer_rate_rps=0.5,
-    skidpad_lat_g=0.74,              # published skid-pad figure for the 2005 Escape
-    stopping_distance_60mph_m=41.0,  # published 60-0 mph: 134 ft
-    max_pitch_rad=math.atan(0.30),   # 30 % grade
-)
-
-RANGER_6X6 = VehicleParams(
-    preset="ranger-6x6",
-    # Polaris Ranger 6x6 (2004): 143.5 in long, 60 in wide; wheelbase to the middle axle pair
-    length_m=3.65, width_m=1.52, wheelbase_m=2.45, rear_overhang_m=0.55,
-    mass_kg=1050.0,                  # 590 kg dry + Overbot computers, sensors, fuel
-    drag_area_m2=1.1 * 1.9,          # boxy utility vehicle with roll cage
-    rolling_resistance=0.03,         # knobby off-road tyres
-    driven_weight_fraction=0.67,     # 4 of 6 wheels (rear tandem) driven outside low6wd
-    max_power_w=15_000.0,            # 20 hp Polaris engine
-    idle_rpm=1200.0, redline_rpm=4500.0,
-    gears=(
-        Gear("neutral", 0, 0.0, 0.0),
-        Gear("low6wd", 1, 10.0 * MPH, 6500.0, all_wheel=True),   # seed 001: stay below 10 mph
-        Gear("low", 1, 17.0 * MPH, 4500.0),      # seed 001: low limited to about 17 mph
-        Gear("high", 1, 25.0 * MPH, 2600.0),     # Ranger 6x6 top speed ~25 mph
-        Gear("reverse", -1, 8.0 * MPH, 4000.0),
-    ),
-    park_gear="neutral", drive_gear="high", low_gear="low6wd", reverse_gear="reverse",
-    shift_time_s=1.5, shift_only_stopped=True, crank_time_s=2.0,
-    max_brake_decel_mps2=6.5,
-    max_steer_rad=math.atan(2.45 / 6.1),   # ~12 m turning circle
-    steer_rate_rps=0.35,             # Overbot's steering motor, slower than a production EPS
-    skidpad_lat_g=0.55,              # high centre of gravity
-    stopping_distance_60mph_m=60.0,  # extrapolated from 25-0 mph tests on dirt
-    max_pitch_rad=math.atan(0.35),
-)
-
-PRESETS: dict[str, VehicleParams] = {p.preset: p for p in (ESCAPE_HYBRID, RANGER_6X6)}
-
-
 PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     # name: (lowest, highest, where the bounds come from); both ends allowed. A bound is where
     # a value stops describing a wheeled vehicle this stack could drive (a typo, a unit
@@ -223,25 +171,82 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
 """Physically plausible range of every number a scenario may override (docs/scenarios.md)."""
 
 
+GEAR_RANGES: dict[str, tuple[float, float, str]] = {
+    # the numbers of one gear, bounded like PLAUSIBLE_RANGES: a typo or a unit mistake
+    "max_speed_mps": (0.0, 100.0, "top speed in the gear: 100 m/s (360 km/h) is beyond any "
+                                  "vehicle this stack drives"),
+    "max_force_n": (0.0, 1_000_000.0, "force at the wheels: a car ~5 kN, a 44 t truck in its "
+                                      "lowest gear ~200 kN"),
+}
+"""Plausible range of each number of a gear in a vehicle file."""
+
+MAX_GEARS = 32
+"""Gears a vehicle may list: an 18-speed truck box has 18 forward and 4 reverse."""
+
+GEAR_ROLES: dict[str, tuple[int, str]] = {
+    "park_gear": (0, "a gear that does not drive (direction 0)"),
+    "drive_gear": (1, "a forward gear (direction 1)"),
+    "low_gear": (1, "a forward gear (direction 1)"),
+    "reverse_gear": (-1, "a reverse gear (direction -1)"),
+}
+"""The roles a vehicle's gears play and the direction each must have."""
+
+OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob"})
+"""Simulation knobs (failed crank attempts), 0 unless stated: every other field is required."""
+
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+_FIELD_TYPES: dict[str, Any] = {f.name: f.type for f in msgspec.structs.fields(VehicleParams)}
+PARAMETERS: tuple[str, ...] = tuple(f for f in _FIELD_TYPES if f not in ("preset", "gears"))
+"""The parameters a scenario may override: every field but the name and the gear table."""
+FILE_FIELDS: tuple[str, ...] = tuple("name" if f == "preset" else f for f in _FIELD_TYPES)
+"""The fields of a vehicle file (``name`` is ``VehicleParams.preset``), in the shipped files'
+order."""
+_GEAR_TYPES: dict[str, Any] = {f.name: f.type for f in msgspec.structs.fields(Gear)}
+_GEAR_REQUIRED = tuple(f.name for f in msgspec.structs.fields(Gear) if f.required)
+
+_UNITS = {"m": "m", "m2": "m²", "kg": "kg", "w": "W", "n": "N", "rpm": "rev/min", "s": "s",
+          "mps": "m/s", "mps2": "m/s²", "rad": "rad", "rps": "rad/s", "g": "g"}
+"""Unit suffixes of the field names, for "did you mean" on a field given in another unit."""
+
+
 class VehicleSpecError(ValueError):
+    """An invalid vehicle: ``field`` is the path to the value ("" for the whole vehicle)."""
+
     def __init__(self, field: str, reason: str) -> None:
         self.field, self.reason = field, reason
-        super().__init__(f"{field}: {reason}")
+        super().__init__(f"{field}: {reason}" if field else reason)
 
 
-def _check_override(key: str, value: Any, base: VehicleParams) -> None:
-    """One override has the base value's type (YAML numbers: no quoted numbers) and, for a
-    number, lies within ``PLAUSIBLE_RANGES``."""
-    expected = type(getattr(base, key))
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        if type(value) is not expected:
-            raise VehicleSpecError(key, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
-        return
-    if expected is bool or expected is str or (expected is int and not isinstance(value, int)):
-        raise VehicleSpecError(key, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
-    low, high, why = PLAUSIBLE_RANGES[key]
-    if not low <= value <= high:    # NaN fails this too; a huge int compares exactly
-        raise VehicleSpecError(key, f"must be within {low:g}..{high:g} ({why}), got {_show(value)}")
+def did_you_mean(key: str, known: Iterable[str]) -> str:
+    """``"; did you mean mass_kg? (the unit is kg)"`` for ``mass_lb`` or ``mass``: a known field
+    of the same quantity in another unit, else a close spelling, else ``""``."""
+    known = list(known)
+    stem = key.rsplit("_", 1)[0]
+    for name in known:
+        base, _, unit = name.rpartition("_")
+        if base and unit in _UNITS and base in (stem, key):
+            return f"; did you mean {name}? (the unit is {_UNITS[unit]})"
+    close = difflib.get_close_matches(key, known, n=1, cutoff=0.75)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def _check_value(field: str, value: Any, expected: Any,
+                 bounds: tuple[float, float, str] | None) -> None:
+    """``value`` has the ``expected`` type (YAML numbers: a quoted number is a string; a whole
+    number is a number, a fraction no whole number) and, for a number, is finite and in range."""
+    if expected in (int, float):
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or (expected is int and not isinstance(value, int))):
+            raise VehicleSpecError(field, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise VehicleSpecError(field, f"must be a finite number, got {value}")
+        if bounds is not None:
+            low, high, why = bounds
+            if not low <= value <= high:    # a huge int compares exactly
+                raise VehicleSpecError(field, f"must be within {low:g}..{high:g} ({why}), "
+                                              f"got {_show(value)}")
+    elif type(value) is not expected:
+        raise VehicleSpecError(field, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
 
 
 _TYPE_WORDS = {float: "number", int: "whole number", bool: "boolean (true/false)", str: "string"}
@@ -256,45 +261,131 @@ def _show(value: Any) -> str:
     return f"the string {text}" if isinstance(value, str) else text
 
 
-def _check_consistent(params: VehicleParams, overridden: set[str]) -> None:
+def _check_name(field: str, value: Any) -> None:
+    if not isinstance(value, str) or not _NAME.fullmatch(value):
+        raise VehicleSpecError(field, "must be a name of letters, digits, '.', '_' and '-' "
+                                      f"(at most 64 characters), got {_show(value)}")
+
+
+def _check_roles(params: VehicleParams) -> None:
+    """Each gear role names a gear of the vehicle, one that moves the way the role needs."""
+    by_name = {g.name: g for g in params.gears}
+    for role, (direction, what) in GEAR_ROLES.items():
+        name = getattr(params, role)
+        gear = by_name.get(name)
+        if gear is None:
+            raise VehicleSpecError(role, f"{name!r:.40} names no gear of {params.preset} "
+                                         f"(gears: {', '.join(params.gear_names)})")
+        if gear.direction != direction:
+            raise VehicleSpecError(role, f"{name!r} has direction {gear.direction}; the "
+                                         f"{role} must be {what}")
+
+
+def _check_consistent(params: VehicleParams, given: set[str]) -> None:
     """Cross-field checks: the geometry adds up and the engine's speed range is not empty."""
     if params.wheelbase_m + params.rear_overhang_m > params.length_m:
-        field = next((f for f in ("wheelbase_m", "rear_overhang_m") if f in overridden), "length_m")
+        field = next((f for f in ("wheelbase_m", "rear_overhang_m") if f in given), "length_m")
         raise VehicleSpecError(field, f"wheelbase_m {params.wheelbase_m:g} + rear_overhang_m "
                                       f"{params.rear_overhang_m:g} is longer than length_m "
                                       f"{params.length_m:g} (the axles must fit in the vehicle)")
     if params.idle_rpm >= params.redline_rpm:
-        field = "idle_rpm" if "idle_rpm" in overridden else "redline_rpm"
+        field = "idle_rpm" if "idle_rpm" in given else "redline_rpm"
         raise VehicleSpecError(field, f"idle_rpm {params.idle_rpm:g} must be below redline_rpm "
                                       f"{params.redline_rpm:g}")
 
 
-def vehicle_from_spec(spec: str | dict) -> VehicleParams:
-    """Build parameters from a preset name or ``{preset: NAME, field: value, ...}``.
+def with_overrides(base: VehicleParams, overrides: Mapping[Any, Any]) -> VehicleParams:
+    """``base`` with some parameters replaced (a scenario's ``vehicle: {preset: NAME, ...}``).
 
-    Raises ``VehicleSpecError`` naming the field on an unknown preset or field, a wrong type
-    (a quoted number is a string), a value outside ``PLAUSIBLE_RANGES`` or an inconsistent
-    combination (axles longer than the vehicle).
+    Raises ``VehicleSpecError`` naming the field on an unknown field (saying which field is
+    meant when only the unit is wrong), a wrong type (a quoted number is a string), a value
+    outside ``PLAUSIBLE_RANGES``, a gear role naming no gear or the wrong kind of gear, or an
+    inconsistent combination (axles longer than the vehicle).
     """
-    if isinstance(spec, str):
-        spec = {"preset": spec}
-    overrides = dict(spec)
-    name = overrides.pop("preset", None)
-    if not isinstance(name, str) or name not in PRESETS:
-        raise VehicleSpecError("preset", f"unknown vehicle preset {name!r:.40} "
-                                         f"(known: {', '.join(PRESETS)})")
-    base = PRESETS[name]
-    fields = set(base.__struct_fields__) - {"preset", "gears"}
     for key, value in overrides.items():
-        if key not in fields:
-            raise VehicleSpecError(str(key), "not a vehicle parameter")
-        _check_override(key, value, base)
+        if key not in PARAMETERS:
+            raise VehicleSpecError(str(key), "not a vehicle parameter"
+                                             + did_you_mean(str(key), PARAMETERS))
+        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
     merged = msgspec.to_builtins(base)
     merged.update(overrides)
     params = msgspec.convert(merged, VehicleParams)
-    for role in ("park_gear", "drive_gear", "low_gear", "reverse_gear"):
-        if getattr(params, role) not in params.gear_names:
-            raise VehicleSpecError(role, f"{getattr(params, role)!r:.40} is not one of the "
-                                         f"preset's gears {params.gear_names}")
+    _check_roles(params)
     _check_consistent(params, set(overrides))
     return params
+
+
+def vehicle_from_data(data: Any) -> VehicleParams:
+    """A whole vehicle from plain data (a vehicle file as loaded): ``name``, every parameter
+    (``OPTIONAL_IN_FILE`` may be left out) and the ``gears`` list.
+
+    Raises ``VehicleSpecError`` with the field path (``mass_kg``, ``gears[2].direction``) on
+    everything ``with_overrides`` refuses, and on a missing field or a malformed gear table.
+    """
+    if not isinstance(data, dict):
+        raise VehicleSpecError("", "a vehicle must be a mapping of its fields to values, got "
+                                   + _show(data))
+    for key in data:
+        if key not in FILE_FIELDS:
+            hint = ("; a vehicle names itself with name:" if key == "preset"
+                    else did_you_mean(str(key), FILE_FIELDS))
+            raise VehicleSpecError(str(key), "not a vehicle parameter" + hint)
+    for key in FILE_FIELDS:
+        if key not in data and key not in OPTIONAL_IN_FILE:
+            raise VehicleSpecError(key, "required field missing")
+    _check_name("name", data["name"])
+    values = {k: data[k] for k in PARAMETERS if k in data}
+    for key, value in values.items():
+        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+    gears = _gears_from_data(data["gears"])
+    params = msgspec.convert({"preset": data["name"], **values, "gears": gears}, VehicleParams)
+    _check_roles(params)
+    _check_consistent(params, set(data))
+    return params
+
+
+def _gears_from_data(value: Any) -> list[dict[str, Any]]:
+    """The gear table: a list of ``{name, direction, max_speed_mps, max_force_n}`` (``holds``
+    and ``all_wheel`` false unless given), names unique, a driving gear able to drive."""
+    if not isinstance(value, list) or not value:
+        raise VehicleSpecError("gears", "must be a list of gears, each {name, direction, "
+                                        f"max_speed_mps, max_force_n}}, got {_show(value)}")
+    if len(value) > MAX_GEARS:
+        raise VehicleSpecError("gears", f"{len(value)} gears (at most {MAX_GEARS})")
+    seen: dict[str, int] = {}
+    for i, gear in enumerate(value):
+        where = f"gears[{i}]"
+        if not isinstance(gear, dict):
+            raise VehicleSpecError(where, "must be a mapping {name, direction, max_speed_mps, "
+                                          f"max_force_n}}, got {_show(gear)}")
+        for key in gear:
+            if key not in _GEAR_TYPES:
+                raise VehicleSpecError(f"{where}.{key}", "not a gear field"
+                                                         + did_you_mean(str(key), _GEAR_TYPES))
+        for key in _GEAR_REQUIRED:
+            if key not in gear:
+                raise VehicleSpecError(f"{where}.{key}", "required field missing")
+        _check_name(f"{where}.name", gear["name"])
+        if gear["name"] in seen:
+            raise VehicleSpecError(f"{where}.name", f"{gear['name']!r} is already the name of "
+                                                    f"gears[{seen[gear['name']]}]")
+        seen[gear["name"]] = i
+        for key, value_ in gear.items():
+            if key != "name":
+                _check_value(f"{where}.{key}", value_, _GEAR_TYPES[key], GEAR_RANGES.get(key))
+        if gear["direction"] not in (-1, 0, 1):
+            raise VehicleSpecError(f"{where}.direction", "must be 1 (forward), -1 (reverse) or 0 "
+                                                         f"(neutral/park), got {gear['direction']}")
+        if gear["direction"] != 0 and not (gear["max_speed_mps"] > 0 and gear["max_force_n"] > 0):
+            field = "max_speed_mps" if gear["max_speed_mps"] <= 0 else "max_force_n"
+            raise VehicleSpecError(f"{where}.{field}", "a gear that drives (direction 1 or -1) "
+                                                       "needs a top speed and a force above 0")
+    return value
+
+
+def vehicle_to_data(params: VehicleParams) -> dict[str, Any]:
+    """``params`` as ``vehicle_from_data`` reads them: a vehicle file's fields, in its order."""
+    data = msgspec.to_builtins(params)
+    data["name"] = data.pop("preset")
+    data["gears"] = list(data["gears"])     # a list, as YAML and JSON hold it
+    return {key: data[key] for key in FILE_FIELDS}

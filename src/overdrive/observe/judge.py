@@ -58,7 +58,6 @@ from typing import Any
 from overdrive.dynamics.vehicle_params import AIR_DENSITY_KGPM3, DRY_MU, G_MPS2, VehicleParams
 from overdrive.messages import Topic
 from overdrive.vehicle.modes import safety_mode
-from overdrive.vehicle.sim_node import WORLD_TOPIC
 
 RULES = ("authorization", "direction", "speed", "unintended_motion", "watchdog", "finite",
          "throttle_while_braking", "control", "acceleration_ellipse", "estop_precedence", "contact")
@@ -248,7 +247,7 @@ class Monitor:
                           Topic.PEDALS: self._pedals, Topic.STEER: self._steer,
                           Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._issued_spss,
                           Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._vehicle_status,
-                          Topic.SAFETY: self._safety, WORLD_TOPIC: self._world}
+                          Topic.SAFETY: self._safety, Topic.SIM_WORLD: self._world}
 
     # ------------------------------------------------------------------ bookkeeping
 

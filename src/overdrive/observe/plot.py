@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from overdrive.messages import Topic
+from overdrive.observe.mcap_log import decode_lenient, iter_ticks, read_info, resolve_type
 from overdrive.observe.recorder import TRACE_COLUMNS, Recorder
 from overdrive.scenario.schema import ScenarioError, load_scenario
 
@@ -102,7 +103,6 @@ def load_mcap(path: str | Path) -> RunData:
     """Columns of a ``run.mcap``: the trace's, plus the driving module's limits per period."""
     import yaml
 
-    from overdrive.observe.mcap_log import decode_lenient, iter_ticks, read_info, resolve_type
     path = Path(path)
     info = read_info(path)
     obstacles: list[tuple[float, float]] = []

@@ -15,6 +15,7 @@ import os
 from pathlib import Path
 from typing import Any, TextIO
 
+from overdrive.observe.plot import plot_run
 from overdrive.scenario.safe_yaml import one_line
 
 
@@ -72,6 +73,4 @@ def write_summary(out_path: Path | None, summary: dict[str, Any], *, plot: bool)
         return
     (out_path / "summary.json").write_text(finite_json(summary), encoding="utf-8")
     if plot:
-        from overdrive.observe.plot import plot_run
-
         plot_run(out_path / "trace.csv", out_path / "plot.png", summary)

@@ -31,7 +31,6 @@ from overdrive.scenario.schema import (
 )
 from overdrive.servers.driving import DrivingConfig, DrivingModule
 from overdrive.servers.move import MoveServer, MoveServerConfig
-from overdrive.servers.move_radar import RadarConfig
 from overdrive.servers.speed import SpeedServer, SpeedServerConfig
 from overdrive.vehicle.plain_jaus import JausProfile
 from overdrive.vehicle.sim_node import VehicleSim
@@ -77,7 +76,8 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
     if kinds & MOVE_KINDS:
         move = MoveServerConfig(friction=spec.world.friction)
         if over_jaus:
-            move = msgspec.structs.replace(move, radar=RadarConfig(fitted=False))
+            move = msgspec.structs.replace(
+                move, radar=msgspec.structs.replace(move.radar, fitted=False))
         nodes.append(MoveServer(params, config=move))
     if kinds & (DRIVING_KINDS | MOVE_KINDS):
         driving = DrivingConfig(monitor_actuators=False) if over_jaus else None

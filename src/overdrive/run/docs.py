@@ -12,7 +12,8 @@ and compares with the committed files):
   who publishes what at what rate and who subscribes, measured by running reference scenarios
   on the lock-step runtime with every node tagged;
 - the vehicle-parameter table of ``docs/scenarios.md``: each parameter's plausible range
-  (``overdrive.dynamics.vehicle_params.PLAUSIBLE_RANGES``) and the presets' values.
+  (``overdrive.dynamics.vehicle_params.PLAUSIBLE_RANGES``, ``GEAR_RANGES`` for a gear's
+  numbers) and the shipped vehicle files' values (``overdrive.scenario.vehicles.PRESETS``).
 """
 
 from __future__ import annotations
@@ -31,11 +32,12 @@ import overdrive
 from overdrive import messages
 from overdrive.bus.delivery import CHAIN_TOPICS, COMMAND, delivery
 from overdrive.bus.local import LocalBus
-from overdrive.dynamics.vehicle_params import PLAUSIBLE_RANGES, PRESETS
+from overdrive.dynamics.vehicle_params import GEAR_RANGES, PLAUSIBLE_RANGES
 from overdrive.messages import SafetyDevices, Topic
 from overdrive.run.compose import build_nodes
 from overdrive.runtime.lockstep import LockstepRuntime
 from overdrive.scenario.schema import ScenarioError, parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers import direction_hold
 from overdrive.servers import move as move_server
 from overdrive.servers.speed_table import EVENTS, STATE_TABLE, STATES, mermaid_diagram
@@ -323,7 +325,7 @@ def topics_table() -> str:
     return "\n".join(out) + "\n"
 
 
-VEHICLE_UNITS = (("_kg", "kg"), ("_w", "W"), ("_m2", "m²"), ("_g", "g"))
+VEHICLE_UNITS = (("_kg", "kg"), ("_w", "W"), ("_m2", "m²"), ("_g", "g"), ("_n", "N"))
 """Suffixes that occur in vehicle parameters, not in messages."""
 
 
@@ -341,6 +343,12 @@ def vehicle_bounds_table() -> str:
         values = " | ".join(_number(getattr(p, name)) for p in PRESETS.values())
         unit = next((u for suffix, u in VEHICLE_UNITS if name.endswith(suffix)), unit_of(name))
         out.append(f"| `{name}` | {unit or '-'} | {_number(low)} .. {_number(high)} | {values} "
+                   f"| {_cell(why)} |")
+    for name, (low, high, why) in GEAR_RANGES.items():   # a preset's cell: its lowest..highest
+        spans = [[getattr(g, name) for g in p.gears] for p in PRESETS.values()]
+        values = " | ".join(f"{_number(min(span))} .. {_number(max(span))}" for span in spans)
+        unit = next((u for suffix, u in VEHICLE_UNITS if name.endswith(suffix)), unit_of(name))
+        out.append(f"| `gears[].{name}` | {unit} | {_number(low)} .. {_number(high)} | {values} "
                    f"| {_cell(why)} |")
     return "\n".join(out) + "\n"
 

@@ -49,7 +49,6 @@ from overdrive.bus.access import (
 )
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.observe.judge import DELIVERED_TOPICS
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import open_trace, write_summary
@@ -69,6 +68,7 @@ from overdrive.runtime.scheduling import (
 from overdrive.runtime.wall import WallRuntime
 from overdrive.scenario.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.scenario.schema import Scenario, ScenarioError, parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.plant import ActuatorFaults, World
 from overdrive.vehicle.sim_node import (
     COMMAND_TIMEOUT_S,
@@ -90,7 +90,7 @@ NODE_SPIN_S = 0.0                # no busy-wait in node processes: on a loaded h
                                  # better left to the others (sleep overshoot ~0.1 ms << 10 ms)
 VEHICLE_COMMAND_TIMEOUT_S = COMMAND_TIMEOUT_S  # the vehicle brakes on pedal-command silence (VehicleSim)
 
-NODE_CLASSES = {             # CLI name -> node name (the bus sender) as built by sim.build_nodes
+NODE_CLASSES = {             # CLI name -> node name (the bus sender) as built by run.compose.build_nodes
     "vehicle-sim": "vehicle",
     "speed": "speed",
     "driving": "driving",
@@ -100,7 +100,7 @@ UNAVAILABLE = {"xgv-client": "the XGV client (JAUS) is not available in this bui
 MESH_ORDER = ("vehicle-sim", "speed", "driving", "move")
 """Command receivers first: each process dials those before it (see module doc)."""
 
-_PULL_IN = {  # a minimal event that makes sim.build_nodes include the node, for --preset runs
+_PULL_IN = {  # a minimal event that makes run.compose.build_nodes include the node, for --preset runs
     "vehicle-sim": {"at_s": 0, "engine": "off"},
     "speed": {"at_s": 0, "set_speed": {"speed_mps": 0, "accel_mps2": 1, "gear": "__park__",
                                        "state": "paused"}},
@@ -161,8 +161,6 @@ def build_node(cli_name: str, scenario: Scenario) -> Node:
 
 # --------------------------------------------------------------------------- one node process
 
-def _channel_faults(scenario: Scenario) -> Any:
-    return channel_faults(scenario)
 
 
 def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
@@ -208,7 +206,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
     bus = open_bus(sender=node.name, mode=mode, listen=listen, connect=connect, vehicle=vehicle,
                    registry=stack_registry(), base_file=base_file, user=user, password=password,
                    allow_remote=allow_remote)
-    faults = _channel_faults(scenario)
+    faults = channel_faults(scenario)
     bus.channel = faults
     # the plant integrates at its fixed period; servers step at once on a command (issue 20)
     runtime = WallRuntime([node], bus, event_driven=not isinstance(node, VehicleSim),
@@ -570,7 +568,7 @@ class Launch:
         """Play the scenario in wall-clock time, stop the nodes, write the run folder."""
         assert self.bus is not None, "call start() first"
         scenario, spec = self.scenario, self.scenario.spec
-        faults = _channel_faults(scenario)
+        faults = channel_faults(scenario)
         self.bus.channel = faults
         out_path = self.out_dir
         with contextlib.ExitStack() as stack:

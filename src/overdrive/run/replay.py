@@ -1,7 +1,7 @@
 """Replaying a recorded run through the control stack: a regression check for control code.
 
 ``overdrive replay run.mcap`` rebuilds the servers the run used (move server, driving module,
-speed server: whichever ``overdrive.run.sim.build_nodes`` makes for the recorded scenario, so with
+speed server: whichever ``overdrive.run.compose.build_nodes`` makes for the recorded scenario, so with
 the same vehicle parameters), replaces the vehicle and the scenario player by playback of the
 messages they published, steps everything on the lock-step runtime in the recorded tick order
 (with the scenario's channel faults, drop/delay/duplicate/reorder, re-applied on the bus), and compares each server's

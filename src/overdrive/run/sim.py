@@ -17,6 +17,7 @@ from typing import Any
 from overdrive.bus.local import LocalBus
 from overdrive.messages import Topic
 from overdrive.observe.judge import DELIVERED_TOPICS, Monitor
+from overdrive.observe.mcap_log import McapRecorder
 from overdrive.observe.provenance import code_provenance, run_provenance
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import open_trace, write_summary
@@ -67,8 +68,6 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         taps = list(observers)
         mcap = None
         if out_path is not None and record_mcap:
-            from overdrive.observe.mcap_log import McapRecorder
-
             mcap = stack.enter_context(
                 McapRecorder(out_path / "run.mcap", scenario=scenario, period_s=period_s))
             taps.append(mcap)

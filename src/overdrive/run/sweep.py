@@ -23,6 +23,7 @@ from typing import Any
 
 import yaml
 
+from overdrive.observe.plot import plot_distributions
 from overdrive.observe.provenance import run_provenance
 from overdrive.observe.run_files import finite_json, make_out_dir
 from overdrive.run.sim import run_scenario
@@ -33,6 +34,7 @@ from overdrive.scenario.schema import (
     parse_scenario,
     read_scenario_data,
 )
+from overdrive.scenario.vehicles import names_a_file
 
 JITTERED_KINDS = frozenset({
     "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
@@ -185,9 +187,14 @@ def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:
 
 
 def load_raw(path: Path) -> tuple[dict[str, Any], Scenario]:
-    """Read and validate the scenario; return its raw data and the validated scenario."""
+    """Read and validate the scenario; return its raw data and the validated scenario. A
+    vehicle file it names is replaced by the vehicle's parameters (``parse_scenario``), so the
+    samples run in worker processes and are written out without the file."""
     data = read_scenario_data(path)
-    return data, parse_scenario(data, str(path))
+    scenario = parse_scenario(data, str(path), path.parent)
+    if names_a_file(data.get("vehicle")):
+        data = {**data, "vehicle": scenario.spec.vehicle}
+    return data, scenario
 
 
 def sweep(path: Path, runs: int, jobs: int, out_dir: Path, base_seed: int | None = None,
@@ -288,8 +295,6 @@ def _stats(values: list[float]) -> dict[str, float] | None:
 
 
 def _plot(results: list[dict[str, Any]], out_png: Path) -> None:
-    from overdrive.observe.plot import plot_distributions
-
     samples = {
         "smallest authorization margin at a stop (m)": [r["authorization_margin_m"] for r in results
                                                 if r["authorization_margin_m"] is not None],

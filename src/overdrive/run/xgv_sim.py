@@ -24,13 +24,12 @@ import time
 from collections.abc import Callable
 from typing import Final
 
-from overdrive.dynamics.vehicle_params import PRESETS
 from overdrive.jaus.judp import JUDP_PORT
 from overdrive.messages import Topic
 from overdrive.runtime.udp import open_udp
 from overdrive.scenario.player import ScenarioPlayer, world_from_spec
 from overdrive.scenario.schema import Scenario
-from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv import XgvSimulator
 
 PERIOD_S: Final = 0.01          # the vehicle's step, as in the lock-step runs
@@ -174,9 +173,9 @@ class XgvServer:
         for topic, msg in self.player.step(scenario_s, ()):
             if topic == Topic.SAFETY:
                 self.simulator.set_devices(msg)
-            elif topic == WORLD_TOPIC:
+            elif topic == Topic.SIM_WORLD:
                 self.simulator.set_world(msg)
-            elif topic == FAULTS_TOPIC:
+            elif topic == Topic.SIM_FAULTS:
                 self.simulator.apply_fault(msg)
 
 

@@ -32,7 +32,6 @@ from typing import Any, Final, Literal
 from overdrive.bus.faults import ChannelFaults, Window
 from overdrive.messages import Topic
 from overdrive.runtime.udp import Address, open_udp
-from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC
 from overdrive.vehicle.xgv import XgvSimulator
 from overdrive.vehicle.xgv_client import XgvClient
 
@@ -185,7 +184,7 @@ class XgvSimNode:
 
     name = "xgv"
     period_s = 0.01
-    subscriptions = (Topic.SAFETY, WORLD_TOPIC, FAULTS_TOPIC)
+    subscriptions = (Topic.SAFETY, Topic.SIM_WORLD, Topic.SIM_FAULTS)
 
     def __init__(self, simulator: XgvSimulator, link: LoopbackLink) -> None:
         self.simulator = simulator
@@ -200,9 +199,9 @@ class XgvSimNode:
         for topic, msg in inbox:
             if topic == Topic.SAFETY:
                 sim.set_devices(msg)
-            elif topic == WORLD_TOPIC:
+            elif topic == Topic.SIM_WORLD:
                 sim.set_world(msg)
-            elif topic == FAULTS_TOPIC:
+            elif topic == Topic.SIM_FAULTS:
                 sim.apply_fault(msg)
         for data, sender in link.receive("xgv", now_s):
             for reply, address in sim.receive(data, sender, now_s):

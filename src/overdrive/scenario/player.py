@@ -28,7 +28,7 @@ from overdrive.messages import (
 )
 from overdrive.scenario.schema import EventSpec, Scenario
 from overdrive.vehicle.plant import ActuatorFaults, World
-from overdrive.vehicle.sim_node import FAULTS_TOPIC, WORLD_TOPIC, EngineStall, SensorFault
+from overdrive.vehicle.sim_node import EngineStall, SensorFault
 
 SPSS_PERIOD_S = 0.1        # seed 001: "An SPSS message should be sent to the speed server every 100ms"
 REFRESH_PERIOD_S = 0.1     # max_speed limits are refreshed at the same rate, so they never expire
@@ -168,12 +168,12 @@ class ScenarioPlayer:
                 changes["steering_rate_scale"] = body.steering.rate_scale
                 changes["steering_stuck"] = body.steering.stuck
             self.faults = msgspec.structs.replace(self.faults, **changes)
-            out.append((FAULTS_TOPIC, self.faults))
+            out.append((Topic.SIM_FAULTS, self.faults))
         elif kind == "sensor":
-            out.append((FAULTS_TOPIC, SensorFault(name=body.name, fault=body.fault, start_s=now_s,
+            out.append((Topic.SIM_FAULTS, SensorFault(name=body.name, fault=body.fault, start_s=now_s,
                                                   end_s=now_s + body.for_s, sigma=body.sigma)))
         elif kind == "engine_stall":
-            out.append((FAULTS_TOPIC, EngineStall()))
+            out.append((Topic.SIM_FAULTS, EngineStall()))
         elif kind == "world":
             changes_w: dict[str, Any] = {}
             if body.friction is not None:
@@ -181,5 +181,5 @@ class ScenarioPlayer:
             if body.obstacles is not None:
                 changes_w["obstacles"] = tuple((o.x_m, o.y_m) for o in body.obstacles)
             self.world = msgspec.structs.replace(self.world, **changes_w)
-            out.append((WORLD_TOPIC, self.world))
+            out.append((Topic.SIM_WORLD, self.world))
         # drop, delay, duplicate and reorder are applied by ChannelFaults on the bus

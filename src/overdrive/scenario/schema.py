@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 
 import msgspec
 
-from overdrive.dynamics.vehicle_params import VehicleParams, VehicleSpecError, vehicle_from_spec
+from overdrive.dynamics.vehicle_params import VehicleParams, VehicleSpecError, vehicle_to_data
 from overdrive.scenario.safe_yaml import (
     MAX_DEPTH,
     MAX_JSON_BYTES,
@@ -26,6 +26,7 @@ from overdrive.scenario.safe_yaml import (
     one_line,
     read_text,
 )
+from overdrive.scenario.vehicles import VehicleFileError, names_a_file, vehicle_from_spec
 
 # Bounds: generous physical limits, chosen to catch typos and unit mistakes, not to restrict use.
 Time = Annotated[float, msgspec.Meta(ge=0.0, le=86_400.0)]          # within a day
@@ -368,8 +369,14 @@ def _check_tree(data: Any, source: str) -> None:
                            for i, v in reversed(list(enumerate(value))))
 
 
-def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
-    """Validate raw data (as loaded from YAML) into a Scenario, or raise ScenarioError."""
+def parse_scenario(data: Any, source: str = "<scenario>",
+                   base_dir: str | Path | None = None) -> Scenario:
+    """Validate raw data (as loaded from YAML) into a Scenario, or raise ScenarioError.
+
+    A vehicle file the scenario names is read from ``base_dir`` (the scenario file's folder;
+    default the working directory) and its parameters replace the name in ``spec.vehicle``
+    (a whole vehicle inline), so a copy of the spec needs neither the file nor the folder.
+    """
     if not isinstance(data, dict):
         raise ScenarioError(source, "", "a scenario must be a mapping of keys to values")
     _check_tree(data, source)
@@ -398,10 +405,14 @@ def parse_scenario(data: Any, source: str = "<scenario>") -> Scenario:
         if len(present) != 1:
             raise ScenarioError(source, f"expect[{i}]", "each expectation needs exactly one kind")
     try:
-        vehicle = vehicle_from_spec(spec.vehicle)
+        vehicle = vehicle_from_spec(spec.vehicle, "." if base_dir is None else base_dir)
     except VehicleSpecError as exc:
         field = f"vehicle.{exc.field}" if isinstance(spec.vehicle, dict) and exc.field else "vehicle"
         raise ScenarioError(source, field, exc.reason) from None
+    except VehicleFileError as exc:
+        raise ScenarioError(f"{source}: vehicle file {exc.path}", exc.field, exc.reason) from None
+    if names_a_file(spec.vehicle):
+        spec = msgspec.structs.replace(spec, vehicle=vehicle_to_data(vehicle))
     for i, event in enumerate(spec.events):
         if event.set_speed is not None and event.set_speed.gear not in vehicle.gear_names:
             raise ScenarioError(source, f"events[{i}].set_speed.gear",
@@ -428,8 +439,8 @@ def read_scenario_data(path: str | Path) -> Any:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file."""
-    return parse_scenario(read_scenario_data(path), str(path))
+    """Read and validate a scenario file (a vehicle file it names: from the file's folder)."""
+    return parse_scenario(read_scenario_data(path), str(path), Path(path).parent)
 
 
 def load_scenario_text(text: str, source: str) -> Scenario:

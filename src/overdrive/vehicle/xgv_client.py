@@ -3,7 +3,7 @@
 ``XgvClient`` turns the stack's actuator commands into JAUS commands and the XGV's reports into
 the stack's sensor messages. It never touches a socket or a clock: ``receive(datagram, now_s)``
 takes what arrived, ``sensor_outputs(now_s)`` gives the bus messages to publish, and
-``command_datagrams(now_s)`` the datagrams to send (``overdrive.run.drive`` does the I/O).
+``command_datagrams(now_s)`` the datagrams to send (``overdrive.runtime.xgv_link`` does the I/O).
 
 Sequence (reference §7): Query Heartbeat Pulse until the XGV answers; then Create Service
 Connection for Report Vehicle Mode (Node Manager) and the vehicle's reports (Primitive Driver),
