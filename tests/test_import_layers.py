@@ -329,8 +329,10 @@ SANS_IO = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus", "scen
 NO_FILES = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus")
 """...and, but for the scenario files the scenario layer reads, no file either."""
 EDGE_MODULES = frozenset({"socket", "_socket", "select", "selectors", "threading", "_thread",
-                          "time", "datetime", "asyncio", "concurrent", "multiprocessing",
-                          "subprocess", "signal"})
+                          "time", "asyncio", "concurrent", "multiprocessing", "subprocess",
+                          "signal"})
+CLOCK_CALLS = ("now", "utcnow", "today")
+"""``datetime`` is a type a codec may convert (a JAUS time stamp); reading it from the clock is not."""
 FILE_MODULES = frozenset({"os", "pathlib", "io", "shutil", "tempfile", "importlib"})
 SOCKET_OWNERS = ("runtime/udp.py", "runtime/ports.py")
 """Where sockets are made: UDP for every JAUS edge; TCP probes when picking listener ports."""
@@ -371,8 +373,12 @@ def _calls(tree: ast.AST, name: str) -> list[int]:
 def test_logic_and_codecs_touch_no_clock_socket_or_thread() -> None:
     found = []
     for path in _sources(SANS_IO):
-        if bad := _imported_roots(ast.parse(path.read_text(encoding="utf-8"))) & EDGE_MODULES:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        if bad := _imported_roots(tree) & EDGE_MODULES:
             found.append(f"{path.relative_to(SRC)}: imports {', '.join(sorted(bad))}")
+        found += [f"{path.relative_to(SRC)}:{node.lineno}: reads the clock ({node.func.attr})"
+                  for node in ast.walk(tree) if isinstance(node, ast.Call)
+                  and isinstance(node.func, ast.Attribute) and node.func.attr in CLOCK_CALLS]
     assert found == []
 
 
