@@ -72,6 +72,8 @@ def imports_in(source: str, importer: str, known: Iterable[str]) -> list[Import]
                 found.append(Import(importer, "<relative import>", lazy, child.lineno))
             elif isinstance(child, ast.ImportFrom) and child.module:
                 names = [f"{child.module}.{a.name}" for a in child.names]
+            if isinstance(child, ast.Call) and _dynamic_import(child):
+                names = [child.args[0].value]
             for name in names:
                 target = resolve(name)
                 if target is not None and target != importer and name.startswith("overdrive"):
@@ -80,6 +82,15 @@ def imports_in(source: str, importer: str, known: Iterable[str]) -> list[Import]
 
     visit(ast.parse(source), False)
     return found
+
+
+def _dynamic_import(call: ast.Call) -> bool:
+    """``importlib.import_module("overdrive...")`` or ``__import__("overdrive...")``: an import."""
+    f = call.func
+    named = (isinstance(f, ast.Name) and f.id in ("__import__", "import_module")) or (
+        isinstance(f, ast.Attribute) and f.attr == "import_module")
+    return named and bool(call.args) and isinstance(call.args[0], ast.Constant) \
+        and isinstance(call.args[0].value, str) and call.args[0].value.startswith("overdrive")
 
 
 def layer_of(module: str, layers: tuple[tuple[str, ...], ...]) -> tuple[int, str] | None:
@@ -279,6 +290,13 @@ def test_checker_finds_an_unlisted_function_level_import() -> None:
     assert _check({"overdrive.top.x": source}, {("overdrive.top.x", "overdrive.low.w"): "ok"}) == []
 
 
+@pytest.mark.parametrize("line", ["importlib.import_module('overdrive.top.x')",
+                                  "__import__('overdrive.top.x')"])
+def test_checker_counts_a_dynamic_import(line: str) -> None:
+    found = _check({"overdrive.low.w": f"import importlib\n{line}\n"})
+    assert found == ["overdrive.low.w:2 -> overdrive.top.x: upward import"]
+
+
 def test_checker_refuses_a_relative_import() -> None:
     imports = imports_in("from ..top import x\n", "overdrive.low.w", KNOWN)
     assert breaches(imports, LAYERS, {}) == [
@@ -310,7 +328,11 @@ SANS_IO = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus", "scen
 """Logic and codecs: the time is passed in, bytes go in and out; no clock, no socket, no thread."""
 NO_FILES = ("servers", "safety", "dynamics", "vehicle", "messages", "jaus")
 """...and, but for the scenario files the scenario layer reads, no file either."""
-EDGE_MODULES = frozenset({"socket", "select", "selectors", "threading", "time", "asyncio"})
+EDGE_MODULES = frozenset({"socket", "_socket", "select", "selectors", "threading", "_thread",
+                          "time", "asyncio", "concurrent", "multiprocessing", "subprocess",
+                          "signal"})
+CLOCK_CALLS = ("now", "utcnow", "today")
+"""``datetime`` is a type a codec may convert (a JAUS time stamp); reading it from the clock is not."""
 FILE_MODULES = frozenset({"os", "pathlib", "io", "shutil", "tempfile", "importlib"})
 SOCKET_OWNERS = ("runtime/udp.py", "runtime/ports.py")
 """Where sockets are made: UDP for every JAUS edge; TCP probes when picking listener ports."""
@@ -351,8 +373,12 @@ def _calls(tree: ast.AST, name: str) -> list[int]:
 def test_logic_and_codecs_touch_no_clock_socket_or_thread() -> None:
     found = []
     for path in _sources(SANS_IO):
-        if bad := _imported_roots(ast.parse(path.read_text(encoding="utf-8"))) & EDGE_MODULES:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        if bad := _imported_roots(tree) & EDGE_MODULES:
             found.append(f"{path.relative_to(SRC)}: imports {', '.join(sorted(bad))}")
+        found += [f"{path.relative_to(SRC)}:{node.lineno}: reads the clock ({node.func.attr})"
+                  for node in ast.walk(tree) if isinstance(node, ast.Call)
+                  and isinstance(node.func, ast.Attribute) and node.func.attr in CLOCK_CALLS]
     assert found == []
 
 

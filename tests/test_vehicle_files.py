@@ -421,8 +421,9 @@ BAD_SPECS: dict[str, tuple[Any, str, str]] = {
         {**vehicle_to_data(PRESETS["ranger-6x6"]), "name": "r",
          "gears": [{"name": "n", "direction": 7, "max_speed_mps": 0.0, "max_force_n": 0.0}]},
         "vehicle.gears[0].direction", "must be 1 (forward)"),
-    "whole vehicle inline under a preset's name": (vehicle_to_data(PRESETS["ranger-6x6"]),
-                                                   "vehicle.name", "shipped preset"),
+    "whole vehicle inline under a preset's name, other values": (
+        vehicle_to_data(msgspec.structs.replace(PRESETS["ranger-6x6"], mass_kg=2000.0)),
+        "vehicle.name", "shipped preset"),
 }
 
 
@@ -511,3 +512,10 @@ def test_the_worked_example_runs_with_exit_0(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     summary = msgspec.json.decode((tmp_path / "run" / "summary.json").read_bytes())
     assert summary["vehicle"]["preset"] == "my-van" and summary["violations"] == []
+
+
+def test_a_presets_own_values_under_its_name_are_that_preset() -> None:
+    """A recorded run of a preset (its values inline) or a copy of the preset's file is the
+    preset: taken, not refused for its name."""
+    scenario = parse_scenario({"name": "t", "vehicle": vehicle_to_data(PRESETS["ranger-6x6"])})
+    assert scenario.vehicle == PRESETS["ranger-6x6"]

@@ -29,12 +29,17 @@ class Message(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=T
 
 # --------------------------------------------------------------------------- topics
 
+SIM_WORLD_TOPIC = "sim/world"
+"""Scenario -> simulator: a new ``World`` (obstacles moved, friction changed). Not a stack topic:
+only a simulated vehicle (and the judge, which knows the world) listens."""
+SIM_FAULTS_TOPIC = "sim/faults"
+"""Scenario -> simulator: ``ActuatorFaults``, ``SensorFault``, ``EngineStall``."""
+
+
 class Topic:
     """Topic names. One publisher per topic unless noted."""
 
     MOVE_COMMAND = "move/command"            # planner -> move server (MoveCommand)
-    SIM_WORLD = "sim/world"                  # scenario -> simulator: a new World (obstacles, friction)
-    SIM_FAULTS = "sim/faults"                # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
     MOVE_REPLY = "move/reply"                # move server -> planner (MoveReply)
     MOVE_STATUS = "move/status"              # move server -> anyone (MoveStatus)
     STEERING = "driving/steering"            # path controller / move server -> driving (SteeringRequest)

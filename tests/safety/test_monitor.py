@@ -10,6 +10,7 @@ import pytest
 
 from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
+    SIM_WORLD_TOPIC,
     AdvanceAuthorization,
     MaxSpeed,
     MoveCommand,
@@ -663,7 +664,7 @@ def test_world_friction_change_tightens_the_ellipse(monitor: Monitor) -> None:
 
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
     assert monitor.finish() == []
-    monitor.observe(Topic.SIM_WORLD, World(friction=0.2))
+    monitor.observe(SIM_WORLD_TOPIC, World(friction=0.2))
     monitor.observe(Topic.TRUTH, truth(0.0, 10.0, accel=-5.0))
     assert "acceleration_ellipse" in monitor.finish()[0]
 

@@ -56,7 +56,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from overdrive.dynamics.vehicle_params import AIR_DENSITY_KGPM3, DRY_MU, G_MPS2, VehicleParams
-from overdrive.messages import Topic
+from overdrive.messages import SIM_WORLD_TOPIC, Topic
 from overdrive.vehicle.modes import safety_mode
 
 RULES = ("authorization", "direction", "speed", "unintended_motion", "watchdog", "finite",
@@ -247,7 +247,7 @@ class Monitor:
                           Topic.PEDALS: self._pedals, Topic.STEER: self._steer,
                           Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._issued_spss,
                           Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._vehicle_status,
-                          Topic.SAFETY: self._safety, Topic.SIM_WORLD: self._world}
+                          Topic.SAFETY: self._safety, SIM_WORLD_TOPIC: self._world}
 
     # ------------------------------------------------------------------ bookkeeping
 

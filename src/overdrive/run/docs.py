@@ -417,6 +417,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     check = "--check" in args
     args = [a for a in args if a != "--check"]
+    if len(args) > 1 or any(a.startswith("-") for a in args) or (args and not Path(args[0]).is_dir()):
+        print("usage: python -m overdrive.run.docs [--check] [DOCS_DIR]\n"
+              "writes the generated docs (--check: exit 1 naming each stale file)", file=sys.stderr)
+        return 0 if args in (["--help"], ["-h"]) else 2
     docs_dir = Path(args[0]) if args else Path(__file__).resolve().parents[3] / "docs"
     stale = []
     for path, content in generated(docs_dir).items():

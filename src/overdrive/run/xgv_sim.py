@@ -25,7 +25,7 @@ from collections.abc import Callable
 from typing import Final
 
 from overdrive.jaus.judp import JUDP_PORT
-from overdrive.messages import Topic
+from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
 from overdrive.runtime.udp import open_udp
 from overdrive.scenario.player import ScenarioPlayer, world_from_spec
 from overdrive.scenario.schema import Scenario
@@ -173,9 +173,9 @@ class XgvServer:
         for topic, msg in self.player.step(scenario_s, ()):
             if topic == Topic.SAFETY:
                 self.simulator.set_devices(msg)
-            elif topic == Topic.SIM_WORLD:
+            elif topic == SIM_WORLD_TOPIC:
                 self.simulator.set_world(msg)
-            elif topic == Topic.SIM_FAULTS:
+            elif topic == SIM_FAULTS_TOPIC:
                 self.simulator.apply_fault(msg)
 
 

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 from typing import Any, Final, Literal
 
 from overdrive.bus.faults import ChannelFaults, Window
-from overdrive.messages import Topic
+from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
 from overdrive.runtime.udp import Address, open_udp
 from overdrive.vehicle.xgv import XgvSimulator
 from overdrive.vehicle.xgv_client import XgvClient
@@ -184,7 +184,7 @@ class XgvSimNode:
 
     name = "xgv"
     period_s = 0.01
-    subscriptions = (Topic.SAFETY, Topic.SIM_WORLD, Topic.SIM_FAULTS)
+    subscriptions = (Topic.SAFETY, SIM_WORLD_TOPIC, SIM_FAULTS_TOPIC)
 
     def __init__(self, simulator: XgvSimulator, link: LoopbackLink) -> None:
         self.simulator = simulator
@@ -199,9 +199,9 @@ class XgvSimNode:
         for topic, msg in inbox:
             if topic == Topic.SAFETY:
                 sim.set_devices(msg)
-            elif topic == Topic.SIM_WORLD:
+            elif topic == SIM_WORLD_TOPIC:
                 sim.set_world(msg)
-            elif topic == Topic.SIM_FAULTS:
+            elif topic == SIM_FAULTS_TOPIC:
                 sim.apply_fault(msg)
         for data, sender in link.receive("xgv", now_s):
             for reply, address in sim.receive(data, sender, now_s):

@@ -15,6 +15,8 @@ import msgspec
 
 from overdrive.bus.faults import ChannelFaults
 from overdrive.messages import (
+    SIM_FAULTS_TOPIC,
+    SIM_WORLD_TOPIC,
     AdvanceAuthorization,
     MaxSpeed,
     MoveCommand,
@@ -168,12 +170,12 @@ class ScenarioPlayer:
                 changes["steering_rate_scale"] = body.steering.rate_scale
                 changes["steering_stuck"] = body.steering.stuck
             self.faults = msgspec.structs.replace(self.faults, **changes)
-            out.append((Topic.SIM_FAULTS, self.faults))
+            out.append((SIM_FAULTS_TOPIC, self.faults))
         elif kind == "sensor":
-            out.append((Topic.SIM_FAULTS, SensorFault(name=body.name, fault=body.fault, start_s=now_s,
+            out.append((SIM_FAULTS_TOPIC, SensorFault(name=body.name, fault=body.fault, start_s=now_s,
                                                   end_s=now_s + body.for_s, sigma=body.sigma)))
         elif kind == "engine_stall":
-            out.append((Topic.SIM_FAULTS, EngineStall()))
+            out.append((SIM_FAULTS_TOPIC, EngineStall()))
         elif kind == "world":
             changes_w: dict[str, Any] = {}
             if body.friction is not None:
@@ -181,5 +183,5 @@ class ScenarioPlayer:
             if body.obstacles is not None:
                 changes_w["obstacles"] = tuple((o.x_m, o.y_m) for o in body.obstacles)
             self.world = msgspec.structs.replace(self.world, **changes_w)
-            out.append((Topic.SIM_WORLD, self.world))
+            out.append((SIM_WORLD_TOPIC, self.world))
         # drop, delay, duplicate and reorder are applied by ChannelFaults on the bus

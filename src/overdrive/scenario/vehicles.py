@@ -111,7 +111,7 @@ def vehicle_from_spec(spec: Any, base_dir: str | Path = ".") -> VehicleParams:
     if "file" in spec:
         path = vehicle_path(overrides.pop("file"), base_dir)
         base = read_vehicle_file(path)
-        if base.preset in PRESETS:
+        if base.preset in PRESETS and base != PRESETS[base.preset]:
             raise VehicleFileError(str(path), "name", _shipped_name(base.preset))
         return with_overrides(base, overrides)
     if "preset" in spec:
@@ -123,7 +123,7 @@ def vehicle_from_spec(spec: Any, base_dir: str | Path = ".") -> VehicleParams:
         return with_overrides(PRESETS[name], overrides)
     if "name" in spec:
         params = vehicle_from_data(spec)
-        if params.preset in PRESETS:
+        if params.preset in PRESETS and params != PRESETS[params.preset]:
             raise VehicleSpecError("name", _shipped_name(params.preset))
         return params
     raise VehicleSpecError("", "a mapping needs preset: NAME or file: PATH (then the parameters "
@@ -132,7 +132,8 @@ def vehicle_from_spec(spec: Any, base_dir: str | Path = ".") -> VehicleParams:
 
 
 def _shipped_name(name: str) -> str:
-    """Why a vehicle of the user's own may not take a shipped preset's name: a run's records name
-    the vehicle, and the name picks the preset's tuned gains."""
+    """Why a vehicle of the user's own may not take a shipped preset's name with other values: a
+    run's records name the vehicle, and the name picks the preset's tuned gains. The preset's own
+    file (or a copy, or a recorded run of it) is that preset, and is taken."""
     return (f"{name!r} is the name of a shipped preset; give your vehicle its own name (or use "
             f"{{preset: {name}, PARAM: VALUE}} to change a few values)")

@@ -18,6 +18,8 @@ import msgspec
 
 from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import (
+    SIM_FAULTS_TOPIC,
+    SIM_WORLD_TOPIC,
     GpsIns,
     Imu,
     Notice,
@@ -41,8 +43,8 @@ PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking e
 DRIVER_BRAKE_PCT = 30.0      # simulated safety driver under manual override: firm, controlled stop
 COMMAND_TIMEOUT_S = 0.2     # seed 001's 200 ms SPSS budget, applied by the vehicle to pedal commands
 WATCHED_SOURCES = frozenset({"speed"})   # periodic controllers; one-shot scenario commands are not
-WORLD_TOPIC = Topic.SIM_WORLD    # scenario -> simulator: replace the World (obstacles, friction)
-FAULTS_TOPIC = Topic.SIM_FAULTS  # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
+WORLD_TOPIC = SIM_WORLD_TOPIC    # scenario -> simulator: replace the World (obstacles, friction)
+FAULTS_TOPIC = SIM_FAULTS_TOPIC  # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
 
 SENSOR_TOPICS = {"gps": Topic.GPS_INS, "imu": Topic.IMU, "wheel_speed": Topic.WHEEL_SPEED,
                  "radar": Topic.RADAR}
