@@ -165,6 +165,24 @@ def test_a_refused_command_that_would_not_restrict_binds_nothing(
     assert rules(monitor) == {}
 
 
+@pytest.mark.parametrize(("late_m", "binds"), [(50.0, False), (2.0, True)])
+def test_an_accepted_command_issued_before_the_one_in_force_only_restricts(
+        monitor: Monitor, late_m: float, binds: bool) -> None:
+    """The planner's newest command is its intent: a MOVE the stack accepts although it was
+    issued before the command that binds now (it came late) may shorten, never extend."""
+    clock = Clock(monitor)
+    clock.at(0.0, 0.0)
+    monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1, session=1,
+                                                    distance_m=late_m, maxspeed_mps=5.0))
+    clock.at(0.0, 0.0)
+    clock.issue(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1, session=2,
+                                                distance_m=10.0, maxspeed_mps=5.0))
+    monitor.observe(Topic.MOVE_REPLY, MoveReply(command_id=1, kind="move", accepted=True,
+                                                session=1))
+    end = monitor.ends["authorization[planner]"]
+    assert end.end_m == pytest.approx(late_m if binds else 10.0)
+
+
 def test_a_stale_command_with_nothing_in_force_binds_nothing(monitor: Monitor) -> None:
     clock = Clock(monitor)
     clock.at(0.0, 0.0)

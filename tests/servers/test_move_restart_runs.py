@@ -78,3 +78,53 @@ def test_a_late_command_of_the_planners_earlier_run_never_extends(preset: str) -
     assert result.summary["odometer_m"] <= float(issued["odometer_m"]) + 20.0 + 0.05
     stale = [e for e in result.summary["events"] if e["kind"] == "rejected"]
     assert stale, "the old run's MOVE is answered stale"
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_an_earlier_runs_late_first_message_never_outranks_the_restarted_planner(preset) -> None:
+    """Found attacking sessions: the earlier run's MOVE 40 m, delayed 1 s, arrived after the
+    restarted planner's MOVE 10 m; the server had never heard of the earlier session, took it
+    as the newest and drove on to 39.8 m (the judge, binding what was accepted, passed it).
+    A session first heard of now but issued before the current session's newest is stale."""
+    result = run([{"at_s": 0.45, "delay": {"channel": "move", "for_s": 0.1, "delay_s": 1.0}},
+                  move(0.5, 40.0, 6.0), {"at_s": 0.6, "planner_restart": {}},
+                  move(0.7, 10.0, 6.0)], duration_s=20.0, vehicle=preset)
+    assert result.exit_code == 0, result.summary["violations"]
+    issued = _at(result, 0.7)
+    assert result.summary["odometer_m"] <= float(issued["odometer_m"]) + 10.0 + 0.05
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("new_session", [False], ids=["no-session"])
+def test_a_stale_shortening_that_cannot_be_placed_stops_the_vehicle(preset, new_session) -> None:
+    """Found attacking sessions: a restarted planner without sessions sends MOVE 8 m (id 1:
+    stale), delivered 2 s late, past the 1 s odometer history; counted from the earliest
+    reading kept (a later, further point) it let the vehicle stop 1.9 m past the end. Where a
+    stale command cannot be placed, the vehicle stops, as for a new one."""
+    result = run([move(0.5, 60.0, 8.0), move(1.0, 60.0, 8.0),
+                  {"at_s": 2.9, "planner_restart": {"new_session": new_session}},
+                  {"at_s": 2.95, "delay": {"channel": "move", "for_s": 0.1, "delay_s": 2.0}},
+                  move(3.0, 8.0, 8.0)], duration_s=20.0, vehicle=preset)
+    assert result.exit_code == 0, result.summary["violations"]
+    issued = _at(result, 3.0)
+    end_m = float(issued["odometer_m"]) + max(
+        8.0, _shortest_stop_m(preset, float(issued["speed_mps"])))
+    assert result.summary["odometer_m"] <= end_m
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_late_authorization_that_cannot_be_placed_holds_its_source(preset) -> None:
+    """Found attacking sessions: lidar's advance 8 m arrived 2 s late, after its 60 m, and was
+    counted from the earliest reading kept: the vehicle stopped 1.9 m past its end. Now the
+    source holds at 0 until it is heard in order again."""
+    result = run([{"at_s": 1.0, "advance": {"source": "lidar", "distance_m": 60.0}},
+                  {"at_s": 1.0, "max_speed": {"source": "map", "speed_mps": 8.0}},
+                  {"at_s": 3.45, "delay": {"channel": "advance", "for_s": 0.1, "delay_s": 2.0}},
+                  {"at_s": 3.5, "advance": {"source": "lidar", "distance_m": 8.0}},
+                  {"at_s": 3.7, "advance": {"source": "lidar", "distance_m": 60.0}}],
+                 duration_s=20.0, vehicle=preset)
+    assert result.exit_code == 0, result.summary["violations"]
+    issued = _at(result, 3.5)
+    end_m = float(issued["odometer_m"]) + max(
+        8.0, _shortest_stop_m(preset, float(issued["speed_mps"])))
+    assert result.summary["odometer_m"] <= end_m

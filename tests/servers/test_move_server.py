@@ -404,6 +404,33 @@ def test_an_earlier_sessions_late_command_only_restricts(preset) -> None:
     assert last(out, Topic.ADVANCE).distance_m == 0.0
 
 
+def test_a_session_first_heard_of_late_is_stale_when_issued_before_the_current_newest(
+        preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 0.3, (MoveCommand(kind="move", command_id=1, session=2, distance_m=10.0,
+                                     maxspeed_mps=3.0, issued_s=0.0),), speed=2.0)
+    late = MoveCommand(kind="move", command_id=5, session=1, distance_m=40.0, maxspeed_mps=3.0,
+                       issued_s=-0.1)
+    out = node.step(0.3, [*sensors(preset, speed=2.0), (Topic.MOVE_COMMAND, late)])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.accepted, reply.code) == (False, "stale") and "before the current" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m < 10.0
+    newer = MoveCommand(kind="move", command_id=1, session=3, distance_m=20.0, maxspeed_mps=3.0,
+                        issued_s=0.29)
+    out = node.step(0.31, [*sensors(preset, speed=2.0), (Topic.MOVE_COMMAND, newer)])
+    assert last(out, Topic.MOVE_REPLY).accepted, "a later-issued new session is the planner now"
+
+
+def test_a_stale_command_that_cannot_be_placed_stops(preset) -> None:
+    node = MoveServer(preset)
+    run(node, 0.0, 1.5, (cmd(d=60.0, cid=5),), speed=3.0)
+    old = MoveCommand(kind="move", command_id=2, distance_m=8.0, maxspeed_mps=3.0, issued_s=0.1)
+    out = node.step(1.5, [*sensors(preset, speed=3.0), (Topic.MOVE_COMMAND, old)])
+    reply = last(out, Topic.MOVE_REPLY)
+    assert (reply.code, reply.restricted) == ("stale", True) and "stopping" in reply.message
+    assert last(out, Topic.ADVANCE).distance_m == 0.0
+
+
 def test_an_invalid_stop_is_still_a_stop(preset) -> None:
     node = MoveServer(preset)
     run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)

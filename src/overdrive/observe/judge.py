@@ -369,16 +369,21 @@ class Monitor:
 
     def _move_reply(self, reply: Any) -> None:
         """A MOVE / REVERSE binds once the move server accepts it, from where it was issued;
-        one refused as stale still binds what it restricts (an end closer than the one in
-        force in its direction, a lower max speed): what slows or stops is always obeyed."""
+        one refused as stale, or accepted though issued before the command that binds now,
+        binds only what it restricts (an end closer than the one in force in its direction, a
+        lower max speed): the planner's newest command is its intent, and what slows or stops
+        is always obeyed."""
         pending = self._pending.pop(_key(reply), None)
         if pending is None or self._manual():
             return
         msg, progress, speed, issued_s = pending
         reverse = msg.kind == "reverse"
-        if not reply.accepted:
-            old = self.ends.get(PLANNER_KEY)
-            if reply.code == "stale" and old is not None and old.reverse == reverse:
+        old = self.ends.get(PLANNER_KEY)
+        older = old is not None and issued_s < old.issued_s
+        if not reply.accepted or older:
+            # refused as stale, or accepted though the planner issued it before the command
+            # that binds now (a late message): it binds only what it restricts
+            if (older or reply.code == "stale") and old is not None and old.reverse == reverse:
                 self._set_end(PLANNER_KEY, msg.distance_m, reverse,
                               f"stale {msg.kind.upper()} #{msg.command_id} of "
                               f"{msg.distance_m:g} m", (progress, speed, issued_s))

@@ -51,10 +51,6 @@ class OdometerHistory:
                     f"{self.max_age_s:.1f} s: stale")
         return ""
 
-    def earliest_m(self, default_m: float) -> float:
-        """The earliest odometer reading kept (``default_m`` when none)."""
-        return self._odometers[0] if self._odometers else default_m
-
     def anchor(self, issued_s: float, now_s: float) -> tuple[float | None, str]:
         """The odometer when ``issued_s`` was, or (None, why) for a stale or future-dated time.
 

@@ -573,13 +573,15 @@ class DrivingModule:
             key = ("advance", msg.source, msg.reverse)
             if not self._in_order(key, msg.issued_s, out):
                 # out of order: a closer end still applies, counted from where the vehicle was
-                # when it was issued (or the earliest reading kept: closer, the safe side)
+                # when it was issued; where that is unknown the source holds at 0 (fail-safe)
                 history = self.history_reverse if msg.reverse else self.history
                 progress = self._progress_m(msg.reverse)
                 anchored, _ = history.anchor(msg.issued_s, now_s)
-                start = anchored if anchored is not None else min(progress,
-                                                                  history.earliest_m(progress))
-                self.authorizations.restrict(msg.source, msg.reverse, start + msg.distance_m)
+                if anchored is None:
+                    self.authorizations.restrict(msg.source, msg.reverse, progress)
+                else:
+                    self.authorizations.restrict(msg.source, msg.reverse,
+                                                 anchored + msg.distance_m)
                 continue
             odometer0 = self._progress_m(msg.reverse)
             if msg.issued_s is not None:

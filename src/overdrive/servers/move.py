@@ -213,6 +213,7 @@ class MoveServer:
         self.newest_command_id: int | None = None   # the current session's newest command
         self.session: int | None = None             # the planner's current session
         self.sessions_seen: dict[int, None] = {}    # every session seen (insertion order, bounded)
+        self.newest_issued_s: float | None = None   # stamp of the newest command taken
         self.history = OdometerHistory()   # odometer by time: a command counts from its issue
         # issue 16: motion sensing cross-checked; progress is signed along each direction and
         # conservative (forward in ``history``, reverse here)
@@ -576,17 +577,28 @@ class MoveServer:
         session = getattr(cmd, "session", 0)
         if not isinstance(session, int) or isinstance(session, bool):
             session = 0
+        issued_s = getattr(cmd, "issued_s", None)
+        if not isinstance(issued_s, float) or not math.isfinite(issued_s):
+            issued_s = None
         if session != self.session:
             if session in self.sessions_seen:
                 return f"session {session} is not the planner's current session {self.session}"
-            self.session, self.newest_command_id = session, None
             self.sessions_seen[session] = None
             while len(self.sessions_seen) > MAX_SESSIONS_KEPT:
                 del self.sessions_seen[next(iter(self.sessions_seen))]
+            newest_s = self.newest_issued_s
+            if issued_s is not None and newest_s is not None and issued_s < newest_s:
+                # a session first heard of now, but issued before the current session's
+                # newest command: an earlier run of the planner whose message came late
+                return (f"session {session} issued at t={issued_s:.3f} s, before the current "
+                        f"session {self.session}'s newest command (t={newest_s:.3f} s)")
+            self.session, self.newest_command_id = session, None
         newest = self.newest_command_id
         if newest is not None and command_id <= newest:
             return f"command_id {command_id} is not newer than {newest}: reordered or repeated"
         self.newest_command_id = command_id
+        if issued_s is not None:
+            self.newest_issued_s = max(issued_s, self.newest_issued_s or issued_s)
         return ""
 
     def _stop(self, command_id: int, message: str, out: list) -> None:
@@ -600,8 +612,8 @@ class MoveServer:
                   out: list) -> None:
         """A stale MOVE / REVERSE: its end, if closer than the command in force's, and its max
         speed, if lower, apply; it never starts, extends or turns motion. Its end counts from
-        where the vehicle was when it was issued; where that cannot be placed, from the
-        earliest reading kept (a closer end: the safe side)."""
+        where the vehicle was when it was issued; where that cannot be placed (older than the
+        odometer history, or dated in the future) the vehicle stops."""
         active = self.active
         direction = direction_of(cmd.kind)
         if active is None or direction != active.direction:
@@ -613,9 +625,17 @@ class MoveServer:
         history = self.history_reverse if direction == "reverse" else self.history
         odometer0_m = self.progress_m(direction)
         if cmd.issued_s is not None:
-            anchored, _ = history.anchor(cmd.issued_s, now_s)
-            odometer0_m = anchored if anchored is not None else min(
-                odometer0_m, history.earliest_m(odometer0_m))
+            anchored, when = history.anchor(cmd.issued_s, now_s)
+            if anchored is None:
+                # where it was issued is unknown, so how much closer its end is too: it may
+                # shorten the command in force to anything: stop (fail-safe, as a new command)
+                out.append((Topic.MOVE_REPLY, MoveReply(
+                    command_id=command_id, kind=cmd.kind, accepted=False, code="stale",
+                    restricted=True, message=f"{why}; {when}; stopping")))
+                self.active = None
+                self._set_phase(next_phase(self.phase, "stop_cmd"))
+                return
+            odometer0_m = anchored
         old = active.command
         end_m = min(active.odometer0_m + old.distance_m, odometer0_m + cmd.distance_m)
         distance_m = max(end_m - active.odometer0_m, 0.0)
