@@ -145,12 +145,24 @@ def test_an_older_authorization_still_brings_its_sources_end_closer(preset, olde
     """What slows or stops is always obeyed: a reordered authorization is not taken as the
     source's newest, but an end closer than the one in force applies."""
     node = DrivingModule(preset)
+    _, odo = drive(node, 0.0, 0.5, 0.0, 0.0, [])    # odometer history from t=0
     newer = AdvanceAuthorization(source="lidar", distance_m=5.0, issued_s=0.5)
     older = AdvanceAuthorization(source="lidar", distance_m=older_m, issued_s=0.45)
-    _, odo = drive(node, 0.5, 0.01, 0.0, 0.0, [(Topic.ADVANCE, newer)])
+    _, odo = drive(node, 0.5, 0.01, 0.0, odo, [(Topic.ADVANCE, newer)])
     out, _ = drive(node, 0.51, 0.02, 0.0, odo, [(Topic.ADVANCE, older)])
     status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
     assert status.authorized_m == pytest.approx(min(older_m, 5.0))
+
+
+def test_an_older_authorization_that_cannot_be_placed_holds_its_source(preset) -> None:
+    """Issued before the module's first odometer reading: where its end lies is unknown."""
+    node = DrivingModule(preset)
+    newer = AdvanceAuthorization(source="lidar", distance_m=5.0, issued_s=0.5)
+    older = AdvanceAuthorization(source="lidar", distance_m=50.0, issued_s=0.45)
+    _, odo = drive(node, 0.5, 0.01, 0.0, 0.0, [(Topic.ADVANCE, newer)])
+    out, _ = drive(node, 0.51, 0.02, 0.0, odo, [(Topic.ADVANCE, older)])
+    status = [m for _, topic, m in out if topic == Topic.DRIVING_STATUS][-1]
+    assert status.authorized_m == 0.0
 
 
 @pytest.mark.parametrize("older_mps", [1.0, 2.0, 5.0])
