@@ -7,13 +7,10 @@ import math
 import pytest
 
 from overdrive.dynamics.ellipse import ellipse_for, max_safe_speed_mps
-from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
-    GpsIns,
-    Imu,
     MaxSpeed,
     Notice,
     SetSpeed,
@@ -33,6 +30,7 @@ from overdrive.servers.driving import (
     limit_curvature,
     steer_pct_for,
 )
+from tests.sensor_messages import gps_ins, imu
 from tests.servers.driving_harness import DT_S, IdealLoop, outputs, sensors
 
 PRESET_NAMES = tuple(PRESETS)
@@ -323,18 +321,6 @@ def test_steering_waits_for_the_speed_to_fit_the_curve(params):
 # --------------------------------------------------------------------------- motion sensing
 
 GPS_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "pitch_rad", "roll_rad", "odometer_m")
-
-
-def gps_ins(**kw) -> GpsIns:
-    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
-                  odometer_m=0.0)
-    fields.update(kw)
-    return GpsIns(**fields)
-
-
-def imu(accel_x_mps2: float, yaw_rate_rps: float = 0.0) -> Imu:
-    return Imu(accel_x_mps2=accel_x_mps2, accel_y_mps2=0.0, accel_z_mps2=G_MPS2,
-               yaw_rate_rps=yaw_rate_rps)
 
 
 def fault_codes(out) -> set[int]:

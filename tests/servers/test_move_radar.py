@@ -7,11 +7,9 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import G_MPS2
 from overdrive.messages import (
     AdvanceAuthorization,
     GpsIns,
-    Imu,
     MoveCommand,
     Radar,
     SpeedState,
@@ -29,6 +27,7 @@ from overdrive.servers.move_radar import (
     path_offset,
 )
 from tests.conftest import PRESET_NAMES
+from tests.sensor_messages import gps_ins, imu
 
 CFG = RadarConfig()
 DT = 0.01
@@ -329,18 +328,6 @@ def test_forward_travel_after_a_reverse_is_tracked_from_where_it_began() -> None
 
 
 # --------------------------------------------------------------------------- untrusted pose
-
-def gps_ins(**kw) -> GpsIns:
-    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
-                  odometer_m=0.0)
-    fields.update(kw)
-    return GpsIns(**fields)
-
-
-def imu(accel_x_mps2: float, yaw_rate_rps: float = 0.0) -> Imu:
-    return Imu(accel_x_mps2=accel_x_mps2, accel_y_mps2=0.0, accel_z_mps2=G_MPS2,
-               yaw_rate_rps=yaw_rate_rps)
-
 
 def move_inbox(params, *, speed: float, odo: float, wheel_mps: float | None, radar: bool,
                i: int) -> list:

@@ -34,6 +34,7 @@ from overdrive.servers.move import (
     mermaid_diagram,
     next_phase,
 )
+from tests.sensor_messages import gps_ins
 
 
 def sensors(params, *, speed: float = 0.0, odo: float = 0.0, state: str = "run",
@@ -578,13 +579,6 @@ def test_a_command_shorter_than_the_shortest_stop_is_accepted_with_a_warning(
 DT_S = 0.01
 BAD_NUMBERS = (math.nan, math.inf, -math.inf)
 GPS_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "pitch_rad", "roll_rad", "odometer_m")
-
-
-def gps_ins(**kw) -> GpsIns:
-    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
-                  odometer_m=0.0)
-    fields.update(kw)
-    return GpsIns(**fields)
 
 
 @pytest.mark.parametrize("field", GPS_FIELDS)

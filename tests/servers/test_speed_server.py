@@ -25,6 +25,7 @@ from overdrive.messages import (
 from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.speed import SpeedServer, SpeedServerConfig
 from overdrive.servers.speed_table import STATE_TABLE, STATES, FaultCode
+from tests.sensor_messages import gps_ins
 
 PERIOD_S = 0.01
 PRESET_NAMES = sorted(PRESETS)
@@ -654,13 +655,6 @@ def test_idle_with_a_new_gear_from_run_stops_then_shifts(speed: float):
 # --------------------------------------------------------------------------- sensor input
 
 BAD_NUMBERS = (math.nan, math.inf, -math.inf)
-
-
-def gps_ins(**kw) -> GpsIns:
-    fields = dict(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
-                  odometer_m=0.0)
-    fields.update(kw)
-    return GpsIns(**fields)
 
 
 @pytest.mark.parametrize("field", ("speed_mps", "pitch_rad", "odometer_m"))

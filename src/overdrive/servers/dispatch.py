@@ -28,4 +28,7 @@ class TypeDispatch:
         return handler
 
     def __call__(self, now_s: float, msg: Any, out: list) -> None:
-        self.handler_for(type(msg))(now_s, msg, out)
+        handler = self._by_type.get(type(msg))    # every input of every period: one lookup
+        if handler is None:
+            handler = self.handler_for(type(msg))
+        handler(now_s, msg, out)
