@@ -42,6 +42,7 @@ class Topic:
     MOVE_COMMAND = "move/command"            # planner -> move server (MoveCommand)
     MOVE_REPLY = "move/reply"                # move server -> planner (MoveReply)
     MOVE_STATUS = "move/status"              # move server -> anyone (MoveStatus)
+    PLANNER_CLOCK = "move/planner_clock"     # move server -> recorder (ClockEstimate)
     STEERING = "driving/steering"            # path controller / move server -> driving (SteeringRequest)
     MAX_SPEED = "driving/max_speed"          # many sources -> driving (MaxSpeed)
     ADVANCE = "driving/advance"              # many sources -> driving (AdvanceAuthorization)
@@ -91,8 +92,11 @@ class MoveCommand(Message, frozen=True):
     distance_m: float = 0.0
     maxspeed_mps: float = 0.0
     curvature_1pm: float = 0.0
-    issued_s: float | None = None    # when the planner sent it (the run's clock): the distance
+    issued_s: float | None = None    # when the planner sent it (its clock): the distance
                                      # counts from where the vehicle was then; None: on arrival
+    status_sent_s: float | None = None      # echo of the newest MoveStatus received: its
+    status_received_s: float | None = None  # sent_s, and when it arrived (the planner's clock);
+                                            # with issued_s, the clock offset (move_clock)
 
 
 class MoveReply(Message, frozen=True):
@@ -101,10 +105,24 @@ class MoveReply(Message, frozen=True):
     command_id: int
     kind: MoveKind
     accepted: bool
-    code: Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale"] = "ok"
+    code: Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale", "clock"] = "ok"
     restricted: bool = False         # a stale command's restriction was applied (see MoveCommand)
     session: int = 0                 # the command's session, echoed
     message: str = ""
+
+
+class ClockEstimate(Message, frozen=True):
+    """Bounds on a peer's clock offset (this clock minus the peer's), NTP-style
+    (``servers.clock_offset``): published when they move, reported in ``summary.json``."""
+
+    peer: str
+    offset_s: float              # midpoint of [lo_s, hi_s]
+    lo_s: float
+    hi_s: float
+    uncertainty_s: float         # hi_s - lo_s: the best round trip plus the drift allowance
+    worst_uncertainty_s: float = 0.0
+    refusals: int = 0            # commands refused for time reasons so far
+    resets: int = 0              # times the bounds crossed (a clock stepped)
 
 
 class MoveStatus(Message, frozen=True):
@@ -115,6 +133,7 @@ class MoveStatus(Message, frozen=True):
     remaining_m: float
     latched_estop: bool = False
     reason: str = ""
+    sent_s: float | None = None    # the move server's clock when sent: planners echo it
 
 
 # --------------------------------------------------------------------------- driving module (seed 003)
@@ -334,7 +353,7 @@ class Notice(Message, frozen=True):
 
 
 ALL_MESSAGES: tuple[type[Message], ...] = (
-    MoveCommand, MoveReply, MoveStatus, SteeringRequest, MaxSpeed, AdvanceAuthorization,
+    MoveCommand, MoveReply, MoveStatus, ClockEstimate, SteeringRequest, MaxSpeed, AdvanceAuthorization,
     DriveMode, DrivingStatus, SetSpeed, SpeedState, PedalCommand, SteerCommand, PowertrainCommand,
     SafetyDevices, VehicleStatus, WheelSpeed, GpsIns, Imu, Radar, Truth, Notice,
 )

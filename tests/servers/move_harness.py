@@ -73,10 +73,11 @@ def simulate(spec: dict[str, Any], keep: tuple[str, ...] = ()) -> Run:
 
 
 def run_events(events: list[dict], *, duration_s: float, vehicle: Any = "escape-hybrid",
-               world: dict | None = None, start: str = "ready") -> Any:
-    """``events`` as a scenario run by ``overdrive sim``'s runner (judged, summarised)."""
+               world: dict | None = None, start: str = "ready", **spec: Any) -> Any:
+    """``events`` as a scenario run by ``overdrive sim``'s runner (judged, summarised);
+    ``spec``: more top-level scenario fields."""
     data = {"name": "move-run", "vehicle": vehicle, "start": start, "duration_s": duration_s,
-            "world": world or {}, "events": events}
+            "world": world or {}, "events": events, **spec}
     return run_scenario(parse_scenario(data), None)
 
 

@@ -24,6 +24,7 @@ from overdrive.messages import (
     ALL_MESSAGES,
     SCHEMA_VERSION,
     AdvanceAuthorization,
+    ClockEstimate,
     DriveMode,
     DrivingStatus,
     GpsIns,
@@ -52,6 +53,7 @@ MAX_FRAME_BYTES = 64 * 1024  # far above any message (largest, Truth, is ~250 B)
 
 TOPIC_TYPES: dict[str, type] = {
     Topic.MOVE_COMMAND: MoveCommand, Topic.MOVE_REPLY: MoveReply, Topic.MOVE_STATUS: MoveStatus,
+    Topic.PLANNER_CLOCK: ClockEstimate,
     Topic.STEERING: SteeringRequest, Topic.MAX_SPEED: MaxSpeed, Topic.ADVANCE: AdvanceAuthorization,
     Topic.DRIVE_MODE: DriveMode, Topic.DRIVING_STATUS: DrivingStatus, Topic.SET_SPEED: SetSpeed,
     Topic.SPEED_STATE: SpeedState, Topic.PEDALS: PedalCommand, Topic.STEER: SteerCommand,

@@ -50,6 +50,9 @@ class Recorder:
         self._hint = "none"
         self._safety_mode: str | None = None
         self.counts: dict[str, int] = {}
+        self.moves_accepted = 0            # MOVE / REVERSE replies: accepted, refused
+        self.moves_refused = 0
+        self.first_refusal = ""
         self._handlers = {Topic.NOTICE: self._notice, Topic.SPEED_STATE: self._speed_state_msg,
                           Topic.VEHICLE_STATUS: self._vehicle_status,
                           Topic.MOVE_REPLY: self._move_reply}
@@ -85,6 +88,12 @@ class Recorder:
             self.modes_seen.add(msg.safety_mode)
 
     def _move_reply(self, msg: Any) -> None:
+        if msg.kind != "stop":
+            if msg.accepted:
+                self.moves_accepted += 1
+            else:
+                self.moves_refused += 1
+                self.first_refusal = self.first_refusal or f"{msg.code}: {msg.message}"
         if not msg.accepted:
             self._event("rejected", command=msg.kind, reason=msg.code, message=msg.message,
                         command_id=msg.command_id)

@@ -74,7 +74,8 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
     # over JAUS the configurations differ from the defaults; elsewhere each server takes its own
     # default (None), so a test that swaps a server's default configuration reaches it
     if kinds & MOVE_KINDS:
-        move = MoveServerConfig(friction=spec.world.friction)
+        move = MoveServerConfig(friction=spec.world.friction,
+                                planner_machine=spec.planner_machine)
         if over_jaus:
             move = msgspec.structs.replace(
                 move, radar=msgspec.structs.replace(move.radar, fitted=False))

@@ -123,6 +123,18 @@ def add_judgement(summary: dict[str, Any], monitor: Monitor) -> None:
     summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
 
 
+def clock_report(rec: Recorder) -> dict[str, Any]:
+    """The clock offsets the stack measured (``ClockEstimate``, last of each peer): offset is
+    the stack's clock minus the peer's, ``uncertainty_s`` the bounds' width (round trip)."""
+    est = rec.latest.get(Topic.PLANNER_CLOCK)
+    if est is None:
+        return {}
+    return {est.peer: {"offset_s": round(est.offset_s, 6), "lo_s": round(est.lo_s, 6),
+                       "hi_s": round(est.hi_s, 6), "uncertainty_s": round(est.uncertainty_s, 6),
+                       "worst_uncertainty_s": round(est.worst_uncertainty_s, 6),
+                       "refusals": est.refusals, "resets": est.resets}}
+
+
 def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,
                  nodes: list[Node], invariant_violations: list[str],
                  faults_counts: dict[str, int] | None = None) -> dict[str, Any]:
@@ -161,11 +173,18 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
         "gate_interventions": dict(sorted(vehicle_node.gate_interventions.items()))
         if vehicle_node is not None else {},
         "channel_faults": {k: v for k, v in faults_counts.items() if v},
+        "clocks": clock_report(rec),
         "events": rec.events,
         "violations": [],
         "provenance": run_provenance(scenario.spec, scenario.vehicle),
     }
     violations = [f"invariant {v}" for v in invariant_violations]
+    expects_refusal = any(e.event is not None and e.event.kind == "rejected"
+                          for e in scenario.spec.expect)
+    if rec.moves_refused and not rec.moves_accepted and not expects_refusal:
+        # no silent pass: the planner's every MOVE / REVERSE was refused, nothing was driven
+        violations.append(f"refused everything: none of {rec.moves_refused} MOVE/REVERSE "
+                          f"commands was accepted (first: {rec.first_refusal})")
     for expect in scenario.spec.expect:
         failure = check(expect, summary, rec.states_seen, rec.modes_seen)
         if failure:

@@ -62,9 +62,13 @@ def channel_faults(scenario: Scenario) -> ChannelFaults:
 
 
 class ScenarioPlayer:
+    """Plays the scenario's events. As the planner it stamps commands on its own clock (the
+    stack's unless a ``planner_clock`` event offsets it) and, on another machine
+    (``planner_machine: separate`` or a ``planner_clock`` event), echoes the newest MoveStatus
+    in each command so the move server can measure the offset."""
+
     name = "scenario"
     period_s = 0.01
-    subscriptions: tuple[str, ...] = ()
 
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
@@ -84,12 +88,25 @@ class ScenarioPlayer:
         self.command_id = 0
         self.session = 1        # the planner's run: a real planner picks a random 63-bit number
         self.started = False
+        # the planner's clock: now + offset + drift * (now - since)
+        self.clock_offset_s, self.clock_drift, self.clock_since_s = 0.0, 0.0, 0.0
+        self.echo = scenario.spec.planner_machine == "separate" or "planner_clock" in {
+            e.kind for e in scenario.events}
+        self.subscriptions: tuple[str, ...] = (Topic.MOVE_STATUS,) if self.echo else ()
+        self.status_echo: tuple[float, float] | None = None   # (its sent_s, received: our clock)
+
+    def planner_time(self, now_s: float) -> float:
+        """``now_s`` (the run's clock) read on the planner's clock."""
+        return now_s + self.clock_offset_s + self.clock_drift * (now_s - self.clock_since_s)
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         out: list[tuple[str, Any]] = []
         if not self.started:
             self.started = True
             out.append((Topic.SAFETY, self.devices))
+        for topic, msg in inbox:
+            if topic == Topic.MOVE_STATUS and msg.sent_s is not None:
+                self.status_echo = (msg.sent_s, self.planner_time(now_s))
         while self.next_index < len(self.pending) and self.pending[self.next_index].at_s <= now_s + EPS_S:
             self._apply(self.pending[self.next_index], now_s, out)
             self.next_index += 1
@@ -113,17 +130,24 @@ class ScenarioPlayer:
             if body.new_session:
                 self.session += 1   # a new run of the planner: its ids start again
             self.command_id = 0
+        elif kind == "planner_clock":
+            self.clock_offset_s, self.clock_drift = body.offset_s, body.drift_ppm * 1e-6
+            self.clock_since_s = now_s
+            self.echo = body.echo
         elif kind in ("move", "reverse", "stop"):
             self.command_id += 1
+            echo = self.status_echo if self.echo else None
+            sent_s, received_s = echo if echo is not None else (None, None)
+            stamps: dict[str, Any] = {"issued_s": self.planner_time(now_s),
+                                      "status_sent_s": sent_s, "status_received_s": received_s}
             if kind == "stop":
                 out.append((Topic.MOVE_COMMAND, MoveCommand(
-                    kind="stop", command_id=self.command_id, session=self.session,
-                    issued_s=now_s)))
+                    kind="stop", command_id=self.command_id, session=self.session, **stamps)))
             else:
                 out.append((Topic.MOVE_COMMAND, MoveCommand(
                     kind=kind, command_id=self.command_id, session=self.session,
                     distance_m=body.distance_m, maxspeed_mps=body.maxspeed_mps,
-                    curvature_1pm=body.curvature_1pm, issued_s=now_s)))
+                    curvature_1pm=body.curvature_1pm, **stamps)))
         elif kind == "advance":
             out.append((Topic.ADVANCE, AdvanceAuthorization(
                 source=body.source, distance_m=body.distance_m, reverse=body.reverse,

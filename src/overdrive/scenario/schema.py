@@ -166,6 +166,17 @@ class PlannerRestartSpec(Spec, frozen=True):
     new_session: bool = True
 
 
+class PlannerClockSpec(Spec, frozen=True):
+    """The planner's clock from this event on (it runs on another machine): ``offset_s`` ahead
+    of the stack's (negative: behind), drifting ``drift_ppm`` parts per million (+100: it gains
+    0.1 ms a second). ``echo``: its commands echo the newest MoveStatus it received, so the move
+    server measures the offset (false: a planner that does not)."""
+
+    offset_s: Annotated[float, msgspec.Meta(ge=-10.0, le=10.0)] = 0.0
+    drift_ppm: Annotated[float, msgspec.Meta(ge=-10_000.0, le=10_000.0)] = 0.0
+    echo: bool = True
+
+
 class EventSpec(Spec, frozen=True):
     """One timed event: ``at_s`` plus exactly one kind."""
 
@@ -196,6 +207,7 @@ class EventSpec(Spec, frozen=True):
     engine_stall: Empty | None = None
     world: WorldChangeSpec | None = None
     planner_restart: PlannerRestartSpec | None = None
+    planner_clock: PlannerClockSpec | None = None
 
     @property
     def kind(self) -> str:
@@ -210,7 +222,7 @@ EVENT_KINDS = EventSpec.__struct_fields__[1:]
 OPEN_LOOP_KINDS = frozenset({"actuators", "gear", "engine"})
 SPEED_KINDS = frozenset({"set_speed"})
 DRIVING_KINDS = frozenset({"advance", "max_speed", "steer"})
-MOVE_KINDS = frozenset({"move", "reverse", "stop", "planner_restart"})
+MOVE_KINDS = frozenset({"move", "reverse", "stop", "planner_restart", "planner_clock"})
 
 
 class Window(Spec, frozen=True):
@@ -289,6 +301,7 @@ class ScenarioFile(Spec, frozen=True):
     interface: Literal["embedded", "jaus"] = "embedded"
     control: Literal["wrench", "motion-profile"] = "wrench"
     start: Literal["parked", "ready"] = "parked"
+    planner_machine: Literal["same", "separate"] = "same"   # the planner's clock (move_clock)
     seed: Annotated[int, msgspec.Meta(ge=0, le=2**63 - 1)] = 1
     duration_s: Duration = 60.0
     world: WorldSpec = WorldSpec()

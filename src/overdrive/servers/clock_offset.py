@@ -32,6 +32,17 @@ DRIFT_RATE = 500e-6
 +-50..100 ppm) and ntpd's maximum slew (500 ppm). chrony slews faster when correcting a large
 offset unless ``maxslewrate 500`` is set (docs/multiprocess.md, "Clocks across machines")."""
 
+MAX_CLOCK_OFFSET_S = 0.25
+"""Beyond this the clocks are not synchronised: chrony or PTP keep machines on one network
+within a millisecond, so a quarter of a second means synchronisation is not running (a machine
+booted without it, or before it converged). Stamps could still be corrected, but every other
+use of time across the machines (sensor stamps, logs, recorded bags) would be wrong: refused,
+with a fault the operator sees."""
+
+MAX_CLOCK_UNCERTAINTY_S = 0.05
+"""Widest offset bounds accepted (the round trip plus the drift allowance): a command anchored
+at the earliest plausible time stops at most ``speed x this`` short (0.4 m at 8 m/s)."""
+
 SAMPLES_KEPT = 64
 """Bounds kept per direction; with DRIFT_RATE widening them, older ones stop mattering."""
 
@@ -116,4 +127,4 @@ class ClockOffset:
         return OffsetEstimate(lo, hi)
 
 
-__all__ = ["DRIFT_RATE", "SAMPLES_KEPT", "ClockOffset", "OffsetEstimate"]
+__all__ = ["DRIFT_RATE", "MAX_CLOCK_OFFSET_S", "MAX_CLOCK_UNCERTAINTY_S", "SAMPLES_KEPT", "ClockOffset", "OffsetEstimate"]

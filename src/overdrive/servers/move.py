@@ -85,6 +85,7 @@ from overdrive.messages import (
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
+from overdrive.servers.move_clock import PlannerClock, PlannerMachine
 from overdrive.servers.dispatch import TypeDispatch
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
@@ -175,6 +176,8 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     adaptive: AdaptiveConfig = AdaptiveConfig()
     conditions: ConditionConfig = ConditionConfig()
     radar: RadarConfig = RadarConfig()   # corridor, radar health, reverse limits (move_radar)
+    planner_machine: PlannerMachine = "same"   # the planner's clock: this machine's or another's
+                                               # (move_clock; docs/move-server.md)
 
 
 class ActiveCommand(msgspec.Struct, frozen=True):
@@ -215,6 +218,7 @@ class MoveServer:
         self.sessions_seen: dict[int, None] = {}    # every session seen (insertion order, bounded)
         self.newest_issued_s: float | None = None   # stamp of the newest command taken
         self.history = OdometerHistory()   # odometer by time: a command counts from its issue
+        self.planner_clock = PlannerClock(cfg.planner_machine)   # when, on this clock, it was
         # issue 16: motion sensing cross-checked; progress is signed along each direction and
         # conservative (forward in ``history``, reverse here)
         self.motion = MotionPlausibility(SOURCE)
@@ -411,6 +415,10 @@ class MoveServer:
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
             self._command(now_s, cmd, out)
+        if commands:
+            estimate = self.planner_clock.report(now_s)
+            if estimate is not None:
+                out.append((Topic.PLANNER_CLOCK, estimate))
 
         event = self._classify(now_s, out)
         self._set_phase(next_phase(self.phase, event))
@@ -497,6 +505,15 @@ class MoveServer:
                                                     accepted=False, code="invalid",
                                                     message=verdict.message)))
             return
+        echo = self.planner_clock.observe(now_s, cmd)
+        if echo:
+            if cmd.kind == "stop":
+                self._stop(command_id, f"a STOP is always obeyed ({echo})", out)
+                return
+            out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
+                                                    accepted=False, code="invalid",
+                                                    message=echo)))
+            return
         stale = self._staleness(cmd, command_id)
         if kind == "stop":
             if not stale:
@@ -510,18 +527,23 @@ class MoveServer:
             verdict = self._too_steep_to_plan(cmd)
         odometer0_m = self.progress_m(direction_of(kind))
         if verdict is None and cmd.issued_s is not None:
-            history = self.history_reverse if kind == "reverse" else self.history
-            anchored, why = history.anchor(cmd.issued_s, now_s)
+            anchored, why, clock = self._anchor(kind, cmd.issued_s, now_s)
             if anchored is None:
                 # the planner's newest intent cannot be placed: it may have shortened the
                 # distance, so the command in force is not kept either (fail-safe: stop)
                 out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
-                                                        accepted=False, code="stale",
+                                                        accepted=False,
+                                                        code="clock" if clock else "stale",
                                                         message=f"{why}; stopping")))
+                if clock and self.planner_clock.refused(why):
+                    out.append((Topic.NOTICE, Notice(
+                        kind="fault", source=SOURCE, code="planner_clock",
+                        reason=f"commands refused for time reasons: {why}")))
                 if self.active is not None:
                     self.active = None
                     self._set_phase(next_phase(self.phase, "stop_cmd"))
                 return
+            self.planner_clock.placed()
             odometer0_m = anchored
         if verdict is not None:
             out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
@@ -555,6 +577,18 @@ class MoveServer:
         self.active = ActiveCommand(cmd, direction, odometer0_m)
         self.hold_clear_since_accept = False   # a "failed" hold from before is not this command's
         self._set_phase(next_phase(self.phase, event))
+
+    def _anchor(self, kind: str, issued_s: float, now_s: float
+                ) -> tuple[float | None, str, bool]:
+        """The odometer in ``kind``'s direction when ``issued_s`` (the planner's clock) was,
+        at its earliest plausible time on this clock; or (None, why, whether the reason is the
+        planner's clock rather than the command's age)."""
+        at_s, why = self.planner_clock.issue_time(issued_s, now_s)
+        if at_s is None:
+            return None, why, True
+        history = self.history_reverse if kind == "reverse" else self.history
+        anchored, why = history.anchor(at_s, now_s)
+        return anchored, why, False
 
     def _too_steep_to_plan(self, cmd: MoveCommand) -> Verdict | None:
         """Infeasible when the driving module's braking plan (a share of the ellipse's
@@ -622,10 +656,9 @@ class MoveServer:
                 message=f"{why}: not executed (a stale command only restricts the "
                         f"{'command in force' if active else 'motion'}; none in its direction)")))
             return
-        history = self.history_reverse if direction == "reverse" else self.history
         odometer0_m = self.progress_m(direction)
         if cmd.issued_s is not None:
-            anchored, when = history.anchor(cmd.issued_s, now_s)
+            anchored, when, _clock = self._anchor(cmd.kind, cmd.issued_s, now_s)
             if anchored is None:
                 # where it was issued is unknown, so how much closer its end is too: it may
                 # shorten the command in force to anything: stop (fail-safe, as a new command)
@@ -886,10 +919,12 @@ class MoveServer:
             [r.reason for r in self.monitor.active.values()]) if moving else ""
         if self.phase == "failed":
             reason = self.failure_reason
+        elif not reason and self.planner_clock.fault_reason:
+            reason = f"commands refused for time reasons: {self.planner_clock.fault_reason}"
         out.append((Topic.MOVE_STATUS, MoveStatus(
             command_id=self.last_command_id, phase=self.phase,
             remaining_m=self.remaining_m if self.active is not None else 0.0,
-            latched_estop=self.latched, reason=reason)))
+            latched_estop=self.latched, reason=reason, sent_s=now_s)))
         if now_s + TIME_EPS_S >= self.next_estimates_s:
             out.append((ESTIMATES_TOPIC, self.model.message()))
             self.next_estimates_s += cfg.estimates_period_s

@@ -32,7 +32,7 @@ from overdrive.dynamics.validation import finite
 from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import MoveCommand
 
-ReplyCode = Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale"]
+ReplyCode = Literal["ok", "infeasible", "busy", "not_ready", "invalid", "stale", "clock"]
 KINDS = ("move", "reverse", "stop")
 CURVATURE_TOL_1PM = 1e-9   # float slack on the turning-radius limit
 
