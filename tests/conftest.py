@@ -12,6 +12,13 @@ from overdrive.scenario.vehicles import PRESETS
 PRESET_NAMES = tuple(PRESETS)
 
 
+def reachable_mps(preset: str, wanted_mps: float) -> float:
+    """``wanted_mps``, or the highest speed ``preset``'s drive gear is asked for (0.9 of its
+    top: above, the move server refuses the MOVE as infeasible and the run tests nothing)."""
+    params = PRESETS[preset]
+    return min(wanted_mps, 0.9 * params.gear(params.drive_gear).max_speed_mps)
+
+
 @pytest.fixture(params=PRESET_NAMES)
 def preset(request: pytest.FixtureRequest):
     return PRESETS[request.param]

@@ -14,7 +14,7 @@ from overdrive.safety.plausibility import PlausibilityFault
 from overdrive.scenario.schema import parse_scenario
 from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.move import MoveServer
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, reachable_mps
 
 pytestmark = pytest.mark.variants
 
@@ -23,8 +23,10 @@ SENSE_CODES = {str(int(c)) for c in PlausibilityFault}
 
 def run(vehicle: str = "escape-hybrid", duration_s: float = 30.0, world: dict | None = None,
         events: list[dict] = ()) -> Any:
+    events = [{**e, "move": {**e["move"], "maxspeed_mps": reachable_mps(
+        vehicle, e["move"]["maxspeed_mps"])}} if "move" in e else e for e in events]
     data = {"name": "sense", "vehicle": vehicle, "start": "ready", "duration_s": duration_s,
-            "world": world or {}, "events": list(events)}
+            "world": world or {}, "events": events}
     return run_scenario(parse_scenario(data), None, keep_trace=False, plot=False,
                         record_mcap=False)
 

@@ -21,7 +21,7 @@ from overdrive.run.sweep import sweep
 from overdrive.scenario.schema import parse_scenario
 from overdrive.servers import speed as speed_module
 from overdrive.vehicle.sim_node import VehicleSim
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, reachable_mps
 
 ROOT = Path(__file__).resolve().parents[2]
 MOVE_30 = {"at_s": 0.5, "move": {"distance_m": 30, "maxspeed_mps": 5, "curvature_1pm": 0}}
@@ -458,6 +458,7 @@ def test_reordered_stop_is_not_overtaken() -> None:
 def test_authorization_cut_is_not_overrun(preset: str, speed_mps: float, cut_m: float) -> None:
     """Issue 17: a cut shorter than the normal stop is met by hard braking, without waiting
     for the SPSS period; a cut no vehicle could meet is judged from the shortest stop."""
+    speed_mps = reachable_mps(preset, speed_mps)
     result = run(vehicle=preset, events=[
         {"at_s": 0.5, "move": {"distance_m": 300, "maxspeed_mps": speed_mps, "curvature_1pm": 0}},
         {"at_s": 12, "advance": {"source": "lidar", "distance_m": cut_m}}])
@@ -471,6 +472,7 @@ def test_authorization_cut_is_not_overrun(preset: str, speed_mps: float, cut_m: 
 @pytest.mark.parametrize("grade_percent", [-8.0, 0.0, 8.0])
 def test_a_stop_at_speed_stops_within_the_shortest_physical_stop(preset: str, speed_mps: float,
                                                                  grade_percent: float) -> None:
+    speed_mps = reachable_mps(preset, speed_mps)
     result = run(vehicle=preset, world={"grade_percent": grade_percent}, events=[
         {"at_s": 0.5, "move": {"distance_m": 300, "maxspeed_mps": speed_mps, "curvature_1pm": 0}},
         {"at_s": 12, "stop": {}}])

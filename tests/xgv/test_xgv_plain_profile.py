@@ -360,7 +360,8 @@ def test_no_actuator_command_from_refused_poses(origin_deg: tuple[float, float])
     summary, trace = run["summary"], run["trace"]
     assert max(float(row["throttle_cmd_pct"]) for row in trace) == 0.0
     assert summary["odometer_m"] < 0.01
-    assert [v for v in summary["violations"] if not v.startswith("expect")] == []
+    judged = [v for v in summary["violations"] if not v.startswith("expect")]
+    assert len(judged) == 1 and judged[0].startswith("refused everything"), judged  # not silent
     assert [e["code"] for e in summary["events"] if e["kind"] == "fault"] == ["xgv_pose"]
     rejected = [e for e in summary["events"] if e["kind"] == "rejected"]
     assert [(e["command"], e["reason"]) for e in rejected] == [("move", "not_ready")]

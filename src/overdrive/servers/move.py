@@ -85,8 +85,8 @@ from overdrive.messages import (
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
-from overdrive.servers.move_clock import PlannerClock, PlannerMachine
 from overdrive.servers.dispatch import TypeDispatch
+from overdrive.servers.move_clock import PlannerClock, PlannerMachine
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
