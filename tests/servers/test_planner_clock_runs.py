@@ -28,6 +28,7 @@ def _faults(result, code: str) -> list[dict]:
     return [e for e in result.summary["events"] if e["kind"] == "fault" and e.get("code") == code]
 
 
+@pytest.mark.variants            # 60 whole runs: `make test` runs one in four, test-variants all
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("offset_s", [-0.2, -0.03, 0.0, 0.03, 0.2])
 @pytest.mark.parametrize("drift_ppm", [0.0, 500.0, -500.0])

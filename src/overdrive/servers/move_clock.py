@@ -12,9 +12,10 @@ of the end, never past it (0.08 m at 8 m/s for a 10 ms round trip).
 ``planner_machine``:
 
 - ``same`` (default): the planner runs on this machine's clock, the offset is 0 and a stamp is
-  taken as it is (within ``SKEW_S`` of step phase). When what the planner sends proves otherwise
-  (its bounds exclude 0 by more than ``SKEW_S``), the measurement wins: the stamp is corrected
-  as for ``separate``, or refused when the echo is missing.
+  taken as it is (a stamp up to ``SKEW_S`` ahead, step phase, as now); a planner that echoes is
+  placed at the earlier of its stamp and ``issued_s + lo_s``. When what it sends proves
+  otherwise (its bounds exclude 0 by more than ``SKEW_S``), the measurement wins: the stamp is
+  corrected as for ``separate``; without an echo a stamp further ahead is refused.
 - ``separate``: the planner runs on another machine. No command that starts or extends motion is
   taken until the offset is measured (both directions) and within tolerance: the vehicle stays
   where it is (parked, if it was).
@@ -108,9 +109,10 @@ class PlannerClock:
             return None, (f"the planner's clock offset is known only within "
                           f"{est.uncertainty_s:.3f} s (round trip), more than "
                           f"{MAX_CLOCK_UNCERTAINTY_S} s")
-        if self.machine == "same" and est.lo_s - SKEW_S <= 0.0 <= est.hi_s + SKEW_S:
-            return min(issued_s, now_s), ""      # one clock, as configured
-        return min(issued_s + est.lo_s, now_s), ""
+        lo_s = est.lo_s
+        if self.machine == "same" and lo_s - SKEW_S <= 0.0 <= est.hi_s + SKEW_S:
+            lo_s = min(lo_s, 0.0)    # one clock, as configured: never later than the stamp
+        return min(issued_s + lo_s, now_s), ""
 
     def refused(self, why: str) -> bool:
         """A command refused for ``why`` (time): True when this refusal makes the fault: at
