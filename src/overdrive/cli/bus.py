@@ -220,6 +220,8 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
         raise SystemExit(EXIT_VIOLATION) from None
     finally:
         run.close()
+    for line in result.summary["launch"].get("refused_to_engage", ()):
+        click.echo(f"refused to engage: {line}", err=True)
     if quiet:
         click.echo(str(out))
     else:
