@@ -72,6 +72,7 @@ from overdrive.bus.wire import Registry, WireError
 from overdrive.messages import Notice, Topic
 from overdrive.servers.clock_offset import (
     CLOCK_REPORT_TOPIC,
+    MAX_CLOCK_UNCERTAINTY_S,
     ClockReport,
     OffsetEstimate,
     PeerClocks,
@@ -321,6 +322,7 @@ class ZenohBus:
         self._offsets: dict[str, OffsetEstimate | None] = {}
         self._offsets_until = -math.inf
         self._clock_inbox: SafeInbox | None = None
+        self._tap_offsets: dict[str, float] = {}      # sender -> the last narrow midpoint
         self.closed = False
 
     # ------------------------------------------------------------------ receiving
@@ -397,7 +399,10 @@ class ZenohBus:
             return
         alive = prefix + ALIVE + "/"
         tap_queue = [self._tap_queue] if self._tap_queue is not None else []
-        for _ in range(PULL_BATCH if self._inboxes else PULL_CAPACITY):
+        # the clock reports' inbox is read on arrival (``_admit``): it does not make a bus of taps
+        # (the launcher's) a bus of inboxes
+        nodes_read = any(topic != CLOCK_REPORT_TOPIC for topic in self._inboxes)
+        for _ in range(PULL_BATCH if nodes_read else PULL_CAPACITY):
             sample = pulled.try_recv()
             if sample is None:
                 break
@@ -475,9 +480,13 @@ class ZenohBus:
                 tap(topic, msg)
             if self._stamped_taps:
                 sent_s = getattr(envelope, "sent_s", math.nan)
-                estimate = offsets.get(getattr(envelope, "sender", ""))
-                if estimate is not None:     # an observer's best guess: the midpoint
-                    sent_s += estimate.offset_s
+                sender = getattr(envelope, "sender", "")
+                estimate = offsets.get(sender)
+                # an observer's best guess, the midpoint, while the bounds are narrow: a stalled
+                # pull-mode bus takes frames in late, which widens its upper bounds for a while
+                if estimate is not None and estimate.uncertainty_s <= MAX_CLOCK_UNCERTAINTY_S:
+                    self._tap_offsets[sender] = estimate.offset_s
+                sent_s += self._tap_offsets.get(sender, 0.0)
                 for stamped in self._stamped_taps:
                     stamped(topic, msg, sent_s)
         return len(items)
