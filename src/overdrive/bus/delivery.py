@@ -11,11 +11,13 @@ clock, no socket.
 from __future__ import annotations
 
 from overdrive.messages import Topic
+from overdrive.servers.clock_offset import CLOCK_REPORT_TOPIC
 
 COMMAND, STATE = "command", "state"
 STATE_TOPICS = frozenset({
     Topic.MOVE_STATUS, Topic.DRIVING_STATUS, Topic.SPEED_STATE, Topic.VEHICLE_STATUS,
     Topic.WHEEL_SPEED, Topic.GPS_INS, Topic.IMU, Topic.RADAR, Topic.TRUTH, "launch/clock",
+    CLOCK_REPORT_TOPIC,
 })
 """Periodic state: each sample supersedes the last, so losing a stale one under load is harmless."""
 

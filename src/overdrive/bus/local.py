@@ -22,14 +22,17 @@ class Stamped(tuple):
 
     It unpacks and compares like the pair, so nodes that ignore send times see no difference.
     ``sent_s`` is on the clock of the receiving node's ``now_s`` (the wall-clock runtime converts
-    it); the lock-step runtime delivers plain pairs, sent in the tick that reads them.
+    it, from ``sender``'s clock: docs/multiprocess.md, "Clocks across machines"); the lock-step
+    runtime delivers plain pairs, sent in the tick that reads them.
     """
 
     sent_s: float
+    sender: str
 
-    def __new__(cls, topic: str, msg: Any, sent_s: float) -> Stamped:
+    def __new__(cls, topic: str, msg: Any, sent_s: float, sender: str = "") -> Stamped:
         self = super().__new__(cls, (topic, msg))
         self.sent_s = sent_s
+        self.sender = sender
         return self
 
 

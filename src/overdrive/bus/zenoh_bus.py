@@ -70,6 +70,13 @@ from overdrive.bus.delivery import COMMAND, STATE, STATE_TOPICS, delivery
 from overdrive.bus.local import ChannelModel, Envelope, Stamped, Tap
 from overdrive.bus.wire import Registry, WireError
 from overdrive.messages import Notice, Topic
+from overdrive.servers.clock_offset import (
+    CLOCK_REPORT_TOPIC,
+    MAX_CLOCK_UNCERTAINTY_S,
+    ClockReport,
+    OffsetEstimate,
+    PeerClocks,
+)
 
 KEY_ROOT = "overdrive"
 DEFAULT_VEHICLE = "ego"
@@ -124,6 +131,9 @@ see all evidence of a stall before it judges it (``launch.JUDGE_LAG_S``)."""
 TAP_CAPACITY = 65_536
 """Envelopes queued for taps (the recorder sees every message): ~60 s of a whole-stack run, so a
 launcher stalled for seconds on a loaded host loses nothing (~100 B each: ~7 MB at most)."""
+OFFSETS_REFRESH_S = 0.05
+"""The peers' clock bounds handed to the runtime are recomputed this often (each holds up to 128
+samples per peer), and computed for the end of that window, so they hold throughout it."""
 BLOCK_CLOSE_US = 5_000_000
 """A command publisher blocked this long closes the link (Zenoh's default, stated explicitly):
 long enough for a loaded 2-core host, and the vehicle's 200 ms command timeout stops it first."""
@@ -306,12 +316,20 @@ class ZenohBus:
         self._stamped_taps: list[Callable[[str, Any, float], None]] = []
         self._tokens: list[Any] = []
         self._pulled: Any = None            # pull mode: the FIFO-channel subscriber on **
+        self.clocks = PeerClocks(sender)
+        """Bounds on every peer's clock offset: each received frame's stamp, each peer's
+        ``ClockReport`` (docs/multiprocess.md, "Clocks across machines"); under ``_lock``."""
+        self._offsets: dict[str, OffsetEstimate | None] = {}
+        self._offsets_until = -math.inf
+        self._clock_inbox: SafeInbox | None = None
+        self._tap_offsets: dict[str, float] = {}      # sender -> the last narrow midpoint
         self.closed = False
 
     # ------------------------------------------------------------------ receiving
 
     def _admit(self, key: str, payload: bytes) -> Envelope | None:
         """Decode and police one sample; None (counted) when it must not be delivered."""
+        received_s = self.clock()
         topic = key[len(self._prefix):] if key.startswith(self._prefix) else key
         try:
             sender, msg, sent_s = self.registry.decode_stamped(payload, topic)
@@ -323,7 +341,10 @@ class ZenohBus:
             return None
         with self._lock:
             self.stats.received += 1
-        return Stamped(topic, msg, sent_s)
+            self.clocks.received(sender, received_s, sent_s)
+            if type(msg) is ClockReport and msg.source == sender:
+                self.clocks.report(msg)
+        return Stamped(topic, msg, sent_s, sender)
 
     def _refused(self, topic: str, sender: str, msg: Any) -> bool:
         """True (counted, reported once) when the publisher policy refuses ``msg`` from ``sender``."""
@@ -378,7 +399,10 @@ class ZenohBus:
             return
         alive = prefix + ALIVE + "/"
         tap_queue = [self._tap_queue] if self._tap_queue is not None else []
-        for _ in range(PULL_BATCH if self._inboxes else PULL_CAPACITY):
+        # the clock reports' inbox is read on arrival (``_admit``): it does not make a bus of taps
+        # (the launcher's) a bus of inboxes
+        nodes_read = any(topic != CLOCK_REPORT_TOPIC for topic in self._inboxes)
+        for _ in range(PULL_BATCH if nodes_read else PULL_CAPACITY):
             sample = pulled.try_recv()
             if sample is None:
                 break
@@ -449,21 +473,59 @@ class ZenohBus:
         if self._tap_queue is None:
             return 0
         items = self._tap_queue.drain()
+        offsets = self.clock_offsets() if self._stamped_taps else {}
         for envelope in items:
             topic, msg = envelope
             for tap in self._taps:
                 tap(topic, msg)
             if self._stamped_taps:
                 sent_s = getattr(envelope, "sent_s", math.nan)
+                sender = getattr(envelope, "sender", "")
+                estimate = offsets.get(sender)
+                # an observer's best guess, the midpoint, while the bounds are narrow: a stalled
+                # pull-mode bus takes frames in late, which widens its upper bounds for a while
+                if estimate is not None and estimate.uncertainty_s <= MAX_CLOCK_UNCERTAINTY_S:
+                    self._tap_offsets[sender] = estimate.offset_s
+                sent_s += self._tap_offsets.get(sender, 0.0)
                 for stamped in self._stamped_taps:
                     stamped(topic, msg, sent_s)
         return len(items)
 
     def tap_stamped(self, observer: Callable[[str, Any, float], None]) -> None:
-        """Like ``tap``, with the frame's send time on CLOCK_MONOTONIC as a third argument."""
+        """Like ``tap``, with the frame's send time as a third argument: on this process's clock
+        (``clock``), converted from the sender's with the midpoint of its offset bounds when
+        they are known (as they are when the launcher judges: it engages only then)."""
         if self._tap_queue is None:
             self.tap(lambda _topic, _msg: None)
         self._stamped_taps.append(observer)
+
+    # ------------------------------------------------------------------ clocks
+
+    def clock_offsets(self) -> dict[str, OffsetEstimate | None]:
+        """Each peer's bounds on ``this clock - the peer's`` (None: unknown), recomputed every
+        ``OFFSETS_REFRESH_S`` for the end of that window: valid throughout it."""
+        now = self.clock()
+        if now >= self._offsets_until:
+            self._offsets_until = now + OFFSETS_REFRESH_S
+            with self._lock:
+                self._offsets = self.clocks.estimates(self._offsets_until)
+        return self._offsets
+
+    def clock_reports(self) -> dict[str, ClockReport]:
+        """The newest ``ClockReport`` of each peer."""
+        with self._lock:
+            return dict(self.clocks.latest)
+
+    def exchange_clocks(self) -> None:
+        """Publish this process's ``ClockReport`` (its peers' lower bounds); the peers' reports
+        are taken in as they arrive (the first call subscribes)."""
+        if self._clock_inbox is None:
+            self._clock_inbox = self.subscribe([CLOCK_REPORT_TOPIC])
+        self._clock_inbox.drain()               # read on arrival (``_admit``)
+        now = self.clock()
+        with self._lock:
+            report = self.clocks.make_report(now)
+        self.publish(CLOCK_REPORT_TOPIC, report)
 
     # ------------------------------------------------------------------ sending
 
@@ -543,12 +605,12 @@ def open_bus(*, sender: str, mode: str = "peer", listen: Iterable[str] = (),
              registry: Registry | None = None, base_file: str | Path | None = None,
              user: str | None = None, password: str | None = None, allow_remote: bool = False,
              publishers: Mapping[str, frozenset[str]] | None = PUBLISHERS,
-             pull: bool = False) -> ZenohBus:
+             pull: bool = False, clock: Callable[[], float] = time.monotonic) -> ZenohBus:
     """Open a session with ``session_config`` and wrap it in a bus that owns it."""
     config = session_config(mode=mode, listen=listen, connect=connect, base_file=base_file,
                             user=user, password=password, allow_remote=allow_remote)
     return ZenohBus(zenoh.open(config), sender=sender, vehicle=vehicle, registry=registry,
-                    publishers=publishers, own_session=True, pull=pull)
+                    publishers=publishers, own_session=True, pull=pull, clock=clock)
 
 
 __all__ = [

@@ -7,6 +7,7 @@ Endpoints are loopback-only unless ``--allow-remote``; see docs/multiprocess.md.
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import sys
@@ -86,11 +87,14 @@ def _zenoh_options(fn: Any) -> Any:
               help="Stop after this long (default: until SIGINT/SIGTERM).")
 @click.option("--rt-priority/--no-rt-priority", default=True, show_default=True,
               help="Run SCHED_FIFO (priority 10) where the OS permits it, else at niceness -10.")
+@click.option("--clock-offset", "clock_offset", metavar="OFFSET_S[:DRIFT_PPM]", hidden=True,
+              help="Test hook: this process's clock is CLOCK_MONOTONIC + OFFSET_S, drifting "
+                   "DRIFT_PPM (docs/multiprocess.md, \"Clocks across machines\").")
 @_zenoh_options
 def node(name: str, scenario_path: Path | None, preset: str, start: str, listen: tuple[str, ...],
          connect: tuple[str, ...], mode: str, wait_clock: bool, report: Path | None,
-         duration_s: float | None, rt_priority: bool, zenoh_config: str | None, user: str | None,
-         allow_remote: bool, vehicle: str) -> None:
+         duration_s: float | None, rt_priority: bool, clock_offset: str | None,
+         zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
     """Run one server NAME in this process, on the wall clock, over Zenoh."""
     from overdrive.observe.run_files import OutDirError, make_out_dir
     from overdrive.run.launch import UNAVAILABLE, preset_scenario, run_node
@@ -107,7 +111,8 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
         code = run_node(name, scenario, listen=listen, connect=connect, mode=mode, vehicle=vehicle,
                         wait_clock=wait_clock, report_path=report, base_file=zenoh_config,
                         user=user, password=os.environ.get(PASSWORD_ENV),
-                        allow_remote=allow_remote, duration_s=duration_s, rt_priority=rt_priority)
+                        allow_remote=allow_remote, duration_s=duration_s, rt_priority=rt_priority,
+                        clock_offset=_parse_clock(clock_offset) if clock_offset else None)
     except (ScenarioError, OutDirError) as exc:
         _usage(str(exc))
         return
@@ -115,6 +120,18 @@ def node(name: str, scenario_path: Path | None, preset: str, start: str, listen:
         _usage(str(exc))
         return
     raise SystemExit(code)
+
+
+def _parse_clock(text: str) -> tuple[float, float]:
+    """``OFFSET_S[:DRIFT_PPM]`` -> ``(offset_s, drift_ppm)``."""
+    offset, _, drift = text.partition(":")
+    try:
+        parsed = float(offset), float(drift or 0.0)
+    except ValueError:
+        raise click.BadParameter(f"{text!r}: expected OFFSET_S[:DRIFT_PPM], e.g. 0.1:300") from None
+    if not all(map(math.isfinite, parsed)):
+        raise click.BadParameter(f"{text!r}: not a finite offset and drift")
+    return parsed
 
 
 def _parse_action(text: str, what: str) -> tuple[float, str, str]:
@@ -144,10 +161,15 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
 @click.option("--open-bus", is_flag=True,
               help="No authentication or access rules (any local process can join and command "
                    "the run). Default: per-run credentials and rules, locked down.")
+@click.option("--clock-offset", "clock_offsets", multiple=True, hidden=True,
+              metavar="NODE=OFFSET_S[:DRIFT_PPM]",
+              help="Test hook: NODE's process runs on CLOCK_MONOTONIC + OFFSET_S, drifting "
+                   "DRIFT_PPM (repeat; docs/multiprocess.md, \"Clocks across machines\").")
 @_zenoh_options
 def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kills: tuple[str, ...],
            credentials: str | None, no_plot: bool, rt_priority: bool, quiet: bool, open_bus: bool,
-           zenoh_config: str | None, user: str | None, allow_remote: bool, vehicle: str) -> None:
+           clock_offsets: tuple[str, ...], zenoh_config: str | None, user: str | None,
+           allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
     from overdrive.observe.run_files import OutDirError, make_out_dir
     from overdrive.run.launch import Launch, check_launchable
@@ -157,13 +179,20 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
     del user  # each process uses its node name
     loaded = _load(scenario)
     actions = [_parse_action(k, "kill") for k in kills]
+    offsets: dict[str, tuple[float, float]] = {}
+    for text in clock_offsets:
+        name, sep, value = text.partition("=")
+        if not sep:
+            raise click.BadParameter(f"{text!r}: expected NODE=OFFSET_S[:DRIFT_PPM], e.g. speed=0.1")
+        offsets[name] = _parse_clock(value)
     out = out_dir or default_out_dir(loaded)
     try:
         check_launchable(loaded)
         make_out_dir(out)
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
-                     plot=not no_plot, node_log=True, secure=not open_bus, rt_priority=rt_priority)
+                     plot=not no_plot, node_log=True, secure=not open_bus, rt_priority=rt_priority,
+                     clock_offsets=offsets)
     except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return
@@ -191,6 +220,8 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
         raise SystemExit(EXIT_VIOLATION) from None
     finally:
         run.close()
+    for line in result.summary["launch"].get("refused_to_engage", ()):
+        click.echo(f"refused to engage: {line}", err=True)
     if quiet:
         click.echo(str(out))
     else:

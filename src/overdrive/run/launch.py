@@ -18,6 +18,14 @@ clock for every process on the machine) at 10 Hz. Nodes wait for it, then step o
 ``now_s = monotonic() - epoch``: every process shares the scenario's time axis (sensor-fault
 windows, channel-fault windows and recorded events line up), and a restarted node rejoins on
 the same axis. Channel faults are applied by the process that publishes the faulted topic.
+
+Clocks across machines: every process bounds every other's clock offset from the stamps of the
+frames it receives and the ``ClockReport``s they exchange (``servers.clock_offset``); stamps
+reach a node converted to its clock (``runtime.wall``). The launcher plays nothing until every
+pair of processes has an offset known within tolerance (``MAX_CLOCK_OFFSET_S``,
+``MAX_CLOCK_UNCERTAINTY_S``), waiting at most ``CLOCK_SYNC_TIMEOUT_S``: otherwise the run ends,
+failed, saying which pair and why. ``clock_offsets`` (``--clock-offset``) gives a node's process
+another clock (a test hook: offset and drift).
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,6 +57,7 @@ from overdrive.bus.access import (
 )
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
+from overdrive.messages import Notice, Topic
 from overdrive.observe.judge import DELIVERED_TOPICS
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import open_trace, write_summary
@@ -65,10 +74,20 @@ from overdrive.runtime.scheduling import (
     raise_priority,
     scheduling,
 )
-from overdrive.runtime.wall import WallRuntime
+from overdrive.runtime.wall import ClockReporter, WallRuntime, skewed_clock
 from overdrive.scenario.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.scenario.schema import Scenario, ScenarioError, parse_scenario
 from overdrive.scenario.vehicles import PRESETS
+from overdrive.servers.clock_offset import (
+    CLOCK_REPORT_PERIOD_S,
+    CLOCK_REPORT_TOPIC,
+    MAX_CLOCK_OFFSET_S,
+    MAX_CLOCK_UNCERTAINTY_S,
+    ClockReport,
+    PeerBound,
+    describe_pair,
+    pair_table,
+)
 from overdrive.vehicle.plant import ActuatorFaults, World
 from overdrive.vehicle.sim_node import (
     COMMAND_TIMEOUT_S,
@@ -89,6 +108,11 @@ launcher is never taken for a late emergency stop (the last second of a run is n
 NODE_SPIN_S = 0.0                # no busy-wait in node processes: on a loaded host the CPU is
                                  # better left to the others (sleep overshoot ~0.1 ms << 10 ms)
 VEHICLE_COMMAND_TIMEOUT_S = COMMAND_TIMEOUT_S  # the vehicle brakes on pedal-command silence (VehicleSim)
+CLOCK_SYNC_TIMEOUT_S = 5.0
+"""The launcher waits this long for every pair of processes to have a clock offset known within
+tolerance before it plays anything; then the run ends, failed (a few report periods suffice)."""
+CLOCK_CHECK_PERIOD_S = 0.5       # the launcher re-judges the pairs' offsets this often during a run
+LAUNCHER_NAME = "launcher"       # the launcher in the clock table (its bus sender: LAUNCHER_USER)
 
 NODE_CLASSES = {             # CLI name -> node name (the bus sender) as built by run.compose.build_nodes
     "vehicle-sim": "vehicle",
@@ -124,6 +148,7 @@ def stack_registry() -> Registry:
     for cls in (ActuatorFaults, SensorFault, EngineStall):
         registry.register(cls)
     registry.register(LaunchClock, CLOCK_TOPIC)
+    registry.register(ClockReport, CLOCK_REPORT_TOPIC)
     return registry
 
 
@@ -164,11 +189,18 @@ def build_node(cli_name: str, scenario: Scenario) -> Node:
 
 
 def wait_for_clock(bus: ZenohBus, timeout_s: float | None = None,
-                   stop: threading.Event | StopFlag | None = None) -> LaunchClock | None:
-    """Block until a ``LaunchClock`` arrives (None on timeout or ``stop``)."""
+                   stop: threading.Event | StopFlag | None = None,
+                   exchange_clocks: bool = False) -> LaunchClock | None:
+    """Block until a ``LaunchClock`` arrives (None on timeout or ``stop``); meanwhile, with
+    ``exchange_clocks``, publish this process's ``ClockReport`` every ``CLOCK_REPORT_PERIOD_S``
+    (the launcher engages only once every pair's clock offset is known)."""
     inbox = bus.subscribe([CLOCK_TOPIC])
     deadline = math.inf if timeout_s is None else time.monotonic() + timeout_s
+    next_report = time.monotonic()
     while time.monotonic() < deadline and not (stop and stop.is_set()):
+        if exchange_clocks and time.monotonic() >= next_report:
+            bus.exchange_clocks()
+            next_report = time.monotonic() + CLOCK_REPORT_PERIOD_S
         if bus.pull:
             bus.pump()
         for _topic, msg in inbox.drain():
@@ -183,9 +215,13 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
              wait_clock: bool = False, report_path: Path | None = None,
              base_file: str | Path | None = None, user: str | None = None,
              password: str | None = None, allow_remote: bool = False,
-             duration_s: float | None = None, rt_priority: bool = True) -> int:
+             duration_s: float | None = None, rt_priority: bool = True,
+             clock_offset: tuple[float, float] | None = None) -> int:
     """Run one node until SIGTERM/SIGINT (or ``duration_s``); write a JSON report. Returns 0.
-    ``rt_priority``: ``SCHED_FIFO`` (``NODE_RT_PRIORITY``) where permitted, else ``RUN_NICE``."""
+    ``rt_priority``: ``SCHED_FIFO`` (``NODE_RT_PRIORITY``) where permitted, else ``RUN_NICE``.
+    ``clock_offset``: ``(offset_s, drift_ppm)``, a test hook: this process's clock (its ``now_s``
+    and every stamp it sends) is CLOCK_MONOTONIC shifted and drifting by that much."""
+    clock = time.monotonic if clock_offset is None else skewed_clock(*clock_offset)
     node = build_node(cli_name, scenario)
     stop = StopFlag()
     runtime_box: list[WallRuntime] = []
@@ -205,30 +241,34 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
     node_priority(rt_priority)                   # before the session: its threads inherit it
     bus = open_bus(sender=node.name, mode=mode, listen=listen, connect=connect, vehicle=vehicle,
                    registry=stack_registry(), base_file=base_file, user=user, password=password,
-                   allow_remote=allow_remote)
+                   allow_remote=allow_remote, clock=clock)
     faults = channel_faults(scenario)
     bus.channel = faults
     # the plant integrates at its fixed period; servers step at once on a command (issue 20)
-    runtime = WallRuntime([node], bus, event_driven=not isinstance(node, VehicleSim),
-                          spin_s=NODE_SPIN_S)
+    runtime = WallRuntime([node, ClockReporter(bus)], bus, clock=clock,
+                          event_driven=not isinstance(node, VehicleSim), spin_s=NODE_SPIN_S)
     runtime_box.append(runtime)
     bus.announce(node.name)
     started = time.monotonic()
-    clock: LaunchClock | None = None
+    launch_clock: LaunchClock | None = None
     try:
         if wait_clock:
-            clock = wait_for_clock(bus, stop=stop)
-            if clock is None:
+            launch_clock = wait_for_clock(bus, stop=stop, exchange_clocks=True)
+            if launch_clock is None:
                 return 0
-            runtime.start_s = clock.epoch_monotonic_s
+            runtime.start_s = launch_clock.epoch_monotonic_s
         if not stop.is_set():
             runtime.run(duration_s, on_tick=lambda t: setattr(faults, "now_s", t))
     finally:
+        offsets = {peer: {"lo_s": round(e.lo_s, 6), "hi_s": round(e.hi_s, 6)}
+                   for peer, e in sorted(bus.clock_offsets().items()) if e is not None}
         report = {
             "node": cli_name, "name": node.name, "pid": os.getpid(),
             "uptime_s": round(time.monotonic() - started, 3),
             "scheduling": scheduling(),
-            "epoch_monotonic_s": clock.epoch_monotonic_s if clock else None,
+            "epoch_monotonic_s": launch_clock.epoch_monotonic_s if launch_clock else None,
+            "clock_offset_injected": list(clock_offset) if clock_offset else None,
+            "clock_offsets": offsets,
             "runtime": runtime.stats().get(node.name, {}),
             "bus": bus.stats.as_dict(),
             "channel_faults": {k: v for k, v in faults.counts.items() if v},
@@ -297,8 +337,14 @@ class Launch:
                  restart_delay_s: float = 0.5, actions: Sequence[Action] = (),
                  base_file: str | Path | None = None, credentials: str | Path | None = None,
                  allow_remote: bool = False, plot: bool = True,
-                 node_log: bool = False, secure: bool = True, rt_priority: bool = True) -> None:
+                 node_log: bool = False, secure: bool = True, rt_priority: bool = True,
+                 clock_offsets: Mapping[str, tuple[float, float]] | None = None,
+                 clock_sync_timeout_s: float = CLOCK_SYNC_TIMEOUT_S) -> None:
         self.scenario = scenario
+        self.clock_offsets = {name: (float(o), float(d)) for name, (o, d)
+                              in (clock_offsets or {}).items()}
+        """Test hook: node (CLI name) -> ``(offset_s, drift_ppm)`` of its process's clock."""
+        self.clock_sync_timeout_s = clock_sync_timeout_s
         self.rt_priority = rt_priority
         """Nodes run ``SCHED_FIFO`` where permitted (``node_priority``); False: niceness only."""
         self.out_dir = Path(out_dir) if out_dir is not None else None
@@ -316,7 +362,7 @@ class Launch:
                 raise ValueError(f"unknown action {what!r}")
         check_launchable(scenario)
         self.names = scenario_node_names(scenario)
-        for _at, _what, name in self.actions:
+        for _at, _what, name in [*self.actions, *((0, "", n) for n in self.clock_offsets)]:
             if name not in self.names:
                 raise ScenarioError(scenario.source, "node",
                                     f"{name!r} is not a process of this run ({', '.join(self.names)})")
@@ -347,6 +393,11 @@ class Launch:
         self.events: list[dict[str, Any]] = []
         self.violations: list[str] = []
         self.now_s = 0.0
+        self.clock_rows: list[dict[str, Any]] = []
+        """The pairs' clock offsets as last judged (``servers.clock_offset.pair_table``)."""
+        self._clock_worst: dict[tuple[str, str], dict[str, float]] = {}
+        self._clock_faulted: set[tuple[str, str]] = set()
+        self._clock_checked_s = -math.inf
         self.recorder: Any = None
         """The run's Recorder while ``run`` plays (``on_tick`` may read ``recorder.latest``)."""
         self._scenario_path: Path | None = None
@@ -384,6 +435,9 @@ class Launch:
             cmd.append("--allow-remote")
         if not self.rt_priority:
             cmd.append("--no-rt-priority")
+        if proc.cli_name in self.clock_offsets:
+            offset_s, drift_ppm = self.clock_offsets[proc.cli_name]
+            cmd.append(f"--clock-offset={offset_s!r}:{drift_ppm!r}")
         env = dict(os.environ)
         node_name = NODE_CLASSES[proc.cli_name]
         password = self._credentials_for(node_name)
@@ -471,6 +525,7 @@ class Launch:
 
     def _supervise(self, now_s: float) -> None:
         self.now_s = now_s
+        self._watch_clocks(now_s)
         while self.actions and self.actions[0][0] <= now_s + 1e-9:
             _at, what, name = self.actions.pop(0)
             if what == "restart":
@@ -490,6 +545,76 @@ class Launch:
             if proc.restart_at_s is not None and now_s >= proc.restart_at_s:
                 self._spawn(proc)
                 self._event("process_restart", node=name, pid=proc.popen.pid if proc.popen else None)
+
+    # ------------------------------------------------------------------ clocks
+
+    def judge_clocks(self) -> list[dict[str, Any]]:
+        """Every pair of the run's processes (launcher first, then mesh order): offset bounds
+        from both ends (the launcher's own, the nodes' latest ``ClockReport``) and why the pair
+        must not drive together ("" when fine). Keeps the worst seen per pair."""
+        assert self.bus is not None
+        sender_to_name = {LAUNCHER_USER: LAUNCHER_NAME,
+                          **{NODE_CLASSES[n]: n for n in self.names}}
+        views: dict[str, dict[str, PeerBound]] = {
+            LAUNCHER_USER: {peer: PeerBound(peer, e.lo_s, e.hi_s, self.bus.clocks.peers[peer].resets)
+                            for peer, e in self.bus.clock_offsets().items() if e is not None}}
+        for source, report in self.bus.clock_reports().items():
+            views[source] = {b.peer: b for b in report.bounds}
+        rows = pair_table(sender_to_name, views)
+        for row in rows:
+            row["a"], row["b"] = sender_to_name[row["a"]], sender_to_name[row["b"]]
+            if row["offset_s"] is not None:
+                worst = self._clock_worst.setdefault((row["a"], row["b"]), {
+                    "max_abs_offset_s": 0.0, "max_uncertainty_s": 0.0})
+                worst["max_abs_offset_s"] = max(worst["max_abs_offset_s"], abs(row["offset_s"]))
+                worst["max_uncertainty_s"] = max(worst["max_uncertainty_s"], row["uncertainty_s"])
+        self.clock_rows = rows
+        return rows
+
+    def _sync_clocks(self) -> list[dict[str, Any]]:
+        """Exchange clock reports until every pair is within tolerance (``[]``) or the time is
+        up (the pairs that are not). Nothing is played meanwhile: the nodes wait for the epoch."""
+        assert self.bus is not None
+        deadline = time.monotonic() + self.clock_sync_timeout_s
+        next_report = next_judge = time.monotonic()
+        while True:
+            now = time.monotonic()
+            if now >= next_report:
+                self.bus.exchange_clocks()
+                next_report = now + CLOCK_REPORT_PERIOD_S
+            self.bus.pump()
+            if now >= next_judge:
+                bad = [row for row in self.judge_clocks() if row["reason"]]
+                settled = all(r["reason"].startswith("offset beyond") for r in bad)
+                if not bad or settled or now >= deadline:   # a known offset beyond: conclusive
+                    return bad
+                next_judge = now + 0.05
+            for proc in self.procs.values():
+                if proc.popen is not None and proc.popen.poll() is not None:
+                    raise RuntimeError(f"node {proc.cli_name} exited before the run started "
+                                       f"(code {proc.popen.returncode})")
+            time.sleep(0.002)
+
+    def _watch_clocks(self, now_s: float) -> None:
+        """During the run: a pair beyond tolerance is reported once as a fault notice."""
+        if now_s < self._clock_checked_s + CLOCK_CHECK_PERIOD_S or self.bus is None:
+            return
+        self._clock_checked_s = now_s
+        for row in self.judge_clocks():
+            pair = (row["a"], row["b"])
+            if row["reason"] and row["offset_s"] is not None and pair not in self._clock_faulted:
+                self._clock_faulted.add(pair)
+                self.bus.publish(Topic.NOTICE, Notice(kind="fault", source=LAUNCHER_USER,
+                                                      code="clock_offset", reason=describe_pair(row)))
+
+    def clocks_report(self) -> dict[str, Any]:
+        """``summary.json`` -> ``launch.clocks``."""
+        return {"max_offset_s": MAX_CLOCK_OFFSET_S, "max_uncertainty_s": MAX_CLOCK_UNCERTAINTY_S,
+                "offset_is": "clock of b minus clock of a; lo_s <= offset <= hi_s",
+                "injected": {n: {"offset_s": o, "drift_ppm": d}
+                             for n, (o, d) in sorted(self.clock_offsets.items())},
+                "pairs": self.clock_rows,
+                "worst": [{"a": a, "b": b, **w} for (a, b), w in self._clock_worst.items()]}
 
     def _stop_proc(self, proc: NodeProcess, sig: int = signal.SIGTERM) -> None:
         if proc.popen is None:
@@ -568,6 +693,7 @@ class Launch:
         """Play the scenario in wall-clock time, stop the nodes, write the run folder."""
         assert self.bus is not None, "call start() first"
         scenario, spec = self.scenario, self.scenario.spec
+        refused = [describe_pair(row) for row in self._sync_clocks()]   # before anything plays
         faults = channel_faults(scenario)
         self.bus.channel = faults
         out_path = self.out_dir
@@ -590,9 +716,11 @@ class Launch:
             self.bus.tap_stamped(judge)
             clock = LaunchClock(epoch_monotonic_s=epoch, scenario=scenario.name,
                                 duration_s=spec.duration_s)
-            self.bus.publish(CLOCK_TOPIC, clock)
+            if not refused:                 # refused: the nodes never get an epoch, never step
+                self.bus.publish(CLOCK_TOPIC, clock)
             player = ScenarioPlayer(scenario)
-            runtime = WallRuntime([player, _ClockNode(clock, self._supervise)], self.bus)
+            runtime = WallRuntime([player, _ClockNode(clock, self._supervise),
+                                   ClockReporter(self.bus)], self.bus)
             runtime.start_s = epoch
 
             def before(now_s: float) -> None:
@@ -607,9 +735,14 @@ class Launch:
                     monitor.tick(now_s - JUDGE_LAG_S)
 
             wall_start = time.monotonic()
-            runtime.run(spec.duration_s, on_tick=before, after_step=after)
+            if refused:
+                for line in refused:
+                    self._event("fault", source=LAUNCHER_USER, code="clock_offset", message=line)
+                self.violations.extend(f"refused to engage: {line}" for line in refused)
+            else:
+                runtime.run(spec.duration_s, on_tick=before, after_step=after)
+                self._supervise(runtime.now_s)
             wall_time_s = max(time.monotonic() - wall_start, 1e-9)
-            self._supervise(runtime.now_s)
             reports = self.stop()
         stand_in = VehicleSim(scenario.vehicle, world_from_spec(spec.world), spec.seed)
         stand_in.gate_interventions = dict(reports.get("vehicle-sim", {}).get("gate_interventions", {}))
@@ -619,7 +752,8 @@ class Launch:
                 channel_counts[kind] = channel_counts.get(kind, 0) + n
         recorder.events.extend(self.events)
         recorder.events.sort(key=lambda e: e["t_s"])
-        summary = make_summary(scenario, recorder, spec.duration_s, wall_time_s, [stand_in],
+        summary = make_summary(scenario, recorder, 0.0 if refused else spec.duration_s,
+                               wall_time_s, [stand_in],
                                monitor.finish(), channel_counts)
         summary["violations"].extend(self.violations)
         add_judgement(summary, monitor)
@@ -633,10 +767,13 @@ class Launch:
             "launcher": {"runtime": runtime.stats(), "bus": self.bus.stats.as_dict()},
             "nodes": reports,
             "access": self.access_report(),
+            "clocks": self.clocks_report(),
         }
+        if refused:
+            summary["launch"]["refused_to_engage"] = refused
         self.close()
         exit_code = 1 if summary["violations"] else 0
-        write_summary(out_path, summary, plot=self.plot)
+        write_summary(out_path, summary, plot=self.plot and not refused)
         return LaunchResult(summary, exit_code, out_path, reports)
 
     def stop(self) -> dict[str, dict[str, Any]]:

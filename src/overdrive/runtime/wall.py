@@ -13,8 +13,12 @@ again only after it has recovered (mean back under half the threshold).
 
 Inboxes come from the bus: a ``SafeInbox`` (filled from Zenoh threads) is drained atomically;
 a plain list (``LocalBus``) is copied and cleared. A bus with ``pump()`` (taps, queued notices)
-is pumped on this thread before each round of steps. Envelopes stamped with their send time on
-this clock (``Stamped``, from the Zenoh bus) reach the node with ``sent_s`` on its ``now_s`` axis.
+is pumped on this thread before each round of steps. Envelopes stamped with their send time
+(``Stamped``, from the Zenoh bus) reach the node with ``sent_s`` on its ``now_s`` axis: moved from
+the sender's clock to this one with the earliest plausible offset (``lo_s`` of the bus's
+``clock_offsets()``; unknown: unchanged), as are the ``issued_s`` dates of authorizations and
+speed limits (``servers.clock_offset.restamped``). The clock itself is ``clock`` (a test may
+inject an offset and drift: ``skewed_clock``); no node reads it.
 
 Event-driven steps (issue 20): a node also steps as soon as one of its *triggers* arrives
 (``node.triggers`` if it has that attribute, else the chain commands it subscribes to:
@@ -42,6 +46,7 @@ from overdrive.bus.delivery import trigger_topics
 from overdrive.bus.local import Stamped
 from overdrive.messages import Notice, Topic
 from overdrive.runtime.lockstep import Node
+from overdrive.servers.clock_offset import CLOCK_REPORT_PERIOD_S, restamped
 
 LAG_WINDOW_STEPS = 100     # 1 s at 100 Hz: long enough to average scheduler jitter out
 LAG_THRESHOLD = 0.02       # issue 8: report when the mean period is more than 2 % slow
@@ -144,15 +149,55 @@ class _Slot:
         self.stats = NodeStats(node.name, node.period_s)
 
 
-def _drain(inbox: Any, start_s: float) -> list[tuple[str, Any]]:
-    """The envelopes received since the last step; send stamps moved onto the node's time axis."""
+def skewed_clock(offset_s: float, drift_ppm: float = 0.0,
+                 base: Callable[[], float] = time.monotonic) -> Callable[[], float]:
+    """``base`` shifted by ``offset_s`` and running ``drift_ppm`` fast from now: another
+    machine's clock, for tests of the offset estimation (``overdrive launch --clock-offset``)."""
+    rate, t0 = drift_ppm * 1e-6, base()
+
+    def clock() -> float:
+        t = base()
+        return t + offset_s + rate * (t - t0)
+    return clock
+
+
+def _drain(inbox: Any, start_s: float,
+           offsets: dict[str, Any] | None = None) -> list[tuple[str, Any]]:
+    """The envelopes received since the last step; send stamps (and the dates that anchor
+    distances) moved onto the node's time axis from their sender's clock (module doc)."""
     drain = getattr(inbox, "drain", None)
     if drain is None:
         received = inbox[:]
         inbox.clear()
         return received
-    return [Stamped(e[0], e[1], e.sent_s - start_s) if isinstance(e, Stamped) else e
-            for e in drain()]
+    out: list[tuple[str, Any]] = []
+    for e in drain():
+        if not isinstance(e, Stamped):
+            out.append(e)
+            continue
+        estimate = offsets.get(e.sender) if offsets else None
+        if estimate is None:
+            out.append(Stamped(e[0], e[1], e.sent_s - start_s, e.sender))
+        else:
+            out.append(Stamped(e[0], restamped(e[1], estimate), e.sent_s + estimate.lo_s - start_s,
+                               e.sender))
+    return out
+
+
+class ClockReporter:
+    """A runtime node publishing the bus's ``ClockReport`` every ``CLOCK_REPORT_PERIOD_S``: the
+    samples this process's peers need for their lower bounds (``ZenohBus.exchange_clocks``)."""
+
+    name = "clock"
+    period_s = CLOCK_REPORT_PERIOD_S
+    subscriptions: tuple[str, ...] = ()
+
+    def __init__(self, bus: Any) -> None:
+        self.bus = bus
+
+    def step(self, _now_s: float, _inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
+        self.bus.exchange_clocks()
+        return []
 
 
 class WallRuntime:
@@ -185,6 +230,7 @@ class WallRuntime:
                 slot.inbox.wake = self._wake
                 if len(slot.inbox.triggers) > 1:
                     self._burst_slots.append(slot)
+        self._offsets = getattr(bus, "clock_offsets", None)
         self.start_s: float | None = None
         self._stop = False
         self.lag_notices: list[Notice] = []
@@ -282,7 +328,8 @@ class WallRuntime:
                 self.sleep(CATCH_UP_S)
                 t = clock()
         now_s = t - start
-        outputs = node.step(now_s, _drain(slot.inbox, start))
+        offsets = self._offsets() if self._offsets is not None else None
+        outputs = node.step(now_s, _drain(slot.inbox, start, offsets))
         for topic, msg in outputs:
             publish(topic, msg)
         if slot.monitor.observe(t):
@@ -313,4 +360,5 @@ class WallRuntime:
         self.bus.publish(Topic.NOTICE, notice)
 
 
-__all__ = ["LAG_THRESHOLD", "LAG_WINDOW_STEPS", "LagMonitor", "NodeStats", "WallRuntime"]
+__all__ = ["LAG_THRESHOLD", "LAG_WINDOW_STEPS", "ClockReporter", "LagMonitor", "NodeStats",
+           "WallRuntime", "skewed_clock"]

@@ -24,27 +24,35 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 import msgspec
+
+from overdrive.messages import AdvanceAuthorization, MaxSpeed, Message
 
 DRIFT_RATE = 500e-6
 """Relative rate the two clocks may drift apart (500 ppm): above a crystal's tolerance (typically
 +-50..100 ppm) and ntpd's maximum slew (500 ppm). chrony slews faster when correcting a large
 offset unless ``maxslewrate 500`` is set (docs/multiprocess.md, "Clocks across machines")."""
 
-MAX_CLOCK_OFFSET_S = 0.25
-"""Beyond this the clocks are not synchronised: chrony or PTP keep machines on one network
-within a millisecond, so a quarter of a second means synchronisation is not running (a machine
-booted without it, or before it converged). Stamps could still be corrected, but every other
-use of time across the machines (sensor stamps, logs, recorded bags) would be wrong: refused,
-with a fault the operator sees."""
-
-MAX_CLOCK_UNCERTAINTY_S = 0.05
-"""Widest offset bounds accepted (the round trip plus the drift allowance): a command anchored
-at the earliest plausible time stops at most ``speed x this`` short (0.4 m at 8 m/s)."""
-
 SAMPLES_KEPT = 64
 """Bounds kept per direction; with DRIFT_RATE widening them, older ones stop mattering."""
+
+MAX_CLOCK_OFFSET_S = 0.25
+"""Largest |offset| (the bounds' midpoint) between two processes' clocks at which a multi-process
+run may engage. chrony or PTP keep the clocks of a LAN within ~1 ms (hardware time stamps: within
+a microsecond); a quarter of a second means synchronisation is not working, whatever the
+correction would make of it (docs/multiprocess.md, "Clocks across machines")."""
+MAX_CLOCK_UNCERTAINTY_S = 0.05
+"""Largest ``hi_s - lo_s`` at which an offset counts as known: a quarter of the 200 ms watchdogs.
+A stamp converted with ``lo_s`` is early by at most this much, so a watchdog timed from it fires
+at most this much sooner, and a distance anchored from it ends at most ``speed x this`` short
+(0.4 m at 8 m/s); loopback and a LAN measure well under a millisecond."""
+CLOCK_REPORT_TOPIC = "clock/report"
+"""``ClockReport``: each process, every ``CLOCK_REPORT_PERIOD_S``, to every other (state)."""
+CLOCK_REPORT_PERIOD_S = 0.2
+"""Often enough that lower bounds are seconds fresh (drift widens them 0.1 ms a second)."""
 
 
 class OffsetEstimate(msgspec.Struct, frozen=True):
@@ -127,4 +135,163 @@ class ClockOffset:
         return OffsetEstimate(lo, hi)
 
 
-__all__ = ["DRIFT_RATE", "MAX_CLOCK_OFFSET_S", "MAX_CLOCK_UNCERTAINTY_S", "SAMPLES_KEPT", "ClockOffset", "OffsetEstimate"]
+
+
+# --------------------------------------------------------------------------- between processes
+
+class ClockSample(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """The reporter received ``peer``'s stamp ``sent_s`` (the peer's clock) at ``received_s``
+    (its own): the fastest such frame since its last report. For ``peer`` that is a lower bound
+    (``ClockOffset.echoed(sent_s, received_s)``)."""
+
+    peer: str
+    sent_s: float
+    received_s: float
+
+
+class PeerBound(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """The reporter's bounds on ``its clock - peer's clock`` when it reported."""
+
+    peer: str
+    lo_s: float
+    hi_s: float
+    resets: int = 0
+
+
+class ClockReport(Message, frozen=True):
+    """What one process measured of the others' clocks (``CLOCK_REPORT_TOPIC``): the samples
+    its peers need for their lower bounds, and its own bounds (for the launcher's table)."""
+
+    source: str
+    samples: tuple[ClockSample, ...] = ()
+    bounds: tuple[PeerBound, ...] = ()
+
+
+class PeerClocks:
+    """One ``ClockOffset`` per peer (frame sender), fed from every stamped frame received and
+    from the peers' ``ClockReport``s. Pure: times are passed in, on this process's clock (the
+    raw clock, not a run's ``now_s`` axis: the offset is the same on both)."""
+
+    __slots__ = ("_fastest", "drift_rate", "latest", "name", "peers")
+
+    def __init__(self, name: str, drift_rate: float = DRIFT_RATE) -> None:
+        self.name = name
+        self.drift_rate = drift_rate
+        self.peers: dict[str, ClockOffset] = {}
+        self.latest: dict[str, ClockReport] = {}     # each peer's newest report
+        self._fastest: dict[str, tuple[float, float]] = {}   # peer -> (sent, received) since report
+
+    def _peer(self, peer: str) -> ClockOffset:
+        clock = self.peers.get(peer)
+        if clock is None:
+            clock = self.peers[peer] = ClockOffset(self.drift_rate)
+        return clock
+
+    def received(self, peer: str, now_s: float, sent_s: float) -> None:
+        """A frame ``peer`` stamped ``sent_s`` arrived at ``now_s``."""
+        if peer == self.name or not self._peer(peer).received(now_s, sent_s):
+            return
+        fastest = self._fastest.get(peer)
+        if fastest is None or now_s - sent_s < fastest[1] - fastest[0]:
+            self._fastest[peer] = (sent_s, now_s)
+
+    def report(self, report: ClockReport) -> None:
+        """A peer's report: its fastest sample of our frames is a lower bound here."""
+        if report.source == self.name:
+            return
+        self.latest[report.source] = report
+        for sample in report.samples:
+            if sample.peer == self.name:
+                self._peer(report.source).echoed(sample.sent_s, sample.received_s)
+
+    def estimates(self, now_s: float) -> dict[str, OffsetEstimate | None]:
+        """Every peer's bounds at ``now_s`` (None: not known yet)."""
+        return {peer: clock.estimate(now_s) for peer, clock in self.peers.items()}
+
+    def make_report(self, now_s: float) -> ClockReport:
+        """This process's report; the fastest samples start again from here."""
+        samples = tuple(ClockSample(p, s, r) for p, (s, r) in sorted(self._fastest.items()))
+        self._fastest.clear()
+        bounds = tuple(PeerBound(p, e.lo_s, e.hi_s, self.peers[p].resets)
+                       for p, e in sorted(self.estimates(now_s).items()) if e is not None)
+        return ClockReport(source=self.name, samples=samples, bounds=bounds)
+
+
+def earliest_s(stamp_s: float, estimate: OffsetEstimate | None) -> float:
+    """A peer's stamp on this clock, as early as it can have been (``stamp + lo_s``): a later
+    one would extend a watchdog or a distance. Unknown offset: the stamp as it is (one host,
+    one clock)."""
+    return stamp_s if estimate is None else stamp_s + estimate.lo_s
+
+
+def restamped(msg: Any, estimate: OffsetEstimate | None) -> Any:
+    """``msg`` with the dates that anchor distances (``issued_s`` of ``AdvanceAuthorization``
+    and ``MaxSpeed``) moved to this clock by ``earliest_s``: the distance then counts from
+    earlier, the end comes closer. Other messages (``MoveCommand``: the move server handles the
+    planner's clock) as they are."""
+    if estimate is None or not isinstance(msg, (AdvanceAuthorization, MaxSpeed)) \
+            or msg.issued_s is None:
+        return msg
+    return msgspec.structs.replace(msg, issued_s=msg.issued_s + estimate.lo_s)
+
+
+def out_of_tolerance(estimate: OffsetEstimate | None, max_offset_s: float = MAX_CLOCK_OFFSET_S,
+                     max_uncertainty_s: float = MAX_CLOCK_UNCERTAINTY_S) -> str:
+    """Why two processes must not drive together on these bounds, or ""."""
+    if estimate is None:
+        return "offset unknown"
+    if abs(estimate.offset_s) > max_offset_s:
+        return f"offset beyond {max_offset_s * 1e3:.0f} ms"
+    if estimate.uncertainty_s > max_uncertainty_s:
+        return f"uncertainty beyond {max_uncertainty_s * 1e3:.0f} ms"
+    return ""
+
+
+def pair_table(names: Iterable[str],
+               views: Mapping[str, Mapping[str, PeerBound]]) -> list[dict[str, Any]]:
+    """Every pair ``a < b`` of ``names`` (in that order): ``offset_s`` = ``b``'s clock minus
+    ``a``'s, from both ends' bounds (``views[x][y]``: x's bounds on x - y), intersected; with
+    ``reason`` (why the pair must not engage: "" when fine) judged on each end's own bounds,
+    which are what each converts stamps with."""
+    names = list(names)
+    rows: list[dict[str, Any]] = []
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            ends: list[OffsetEstimate | None] = []
+            resets = 0
+            for x, y, sign in ((a, b, -1.0), (b, a, 1.0)):
+                bound = views.get(x, {}).get(y)
+                if bound is None:
+                    ends.append(None)
+                    continue
+                resets += bound.resets
+                lo, hi = (-bound.hi_s, -bound.lo_s) if sign < 0 else (bound.lo_s, bound.hi_s)
+                ends.append(OffsetEstimate(lo, hi))
+            reason = next((r for r in map(out_of_tolerance, ends) if r), "")
+            row: dict[str, Any] = {"a": a, "b": b, "offset_s": None, "uncertainty_s": None,
+                                   "lo_s": None, "hi_s": None, "resets": resets, "reason": reason}
+            known = [e for e in ends if e is not None]
+            if known:
+                lo, hi = max(e.lo_s for e in known), min(e.hi_s for e in known)
+                if lo > hi:      # the two ends disagree: one reading is stale (a clock stepped)
+                    lo, hi = min(e.lo_s for e in known), max(e.hi_s for e in known)
+                row.update(offset_s=round(0.5 * (lo + hi), 6), uncertainty_s=round(hi - lo, 6),
+                           lo_s=round(lo, 6), hi_s=round(hi, 6))
+            rows.append(row)
+    return rows
+
+
+def describe_pair(row: Mapping[str, Any]) -> str:
+    """One line: which processes, offset, uncertainty, why."""
+    if row["offset_s"] is None:
+        return f"clocks {row['a']}-{row['b']}: {row['reason'] or 'offset unknown'}"
+    offset = row["offset_s"]
+    return (f"clocks {row['a']}-{row['b']}: {row['b']}'s clock {abs(offset) * 1e3:.1f} ms "
+            f"{'ahead of' if offset >= 0 else 'behind'} {row['a']}'s (uncertainty "
+            f"{row['uncertainty_s'] * 1e3:.1f} ms)" + (f": {row['reason']}" if row["reason"] else ""))
+
+
+__all__ = ["CLOCK_REPORT_PERIOD_S", "CLOCK_REPORT_TOPIC", "DRIFT_RATE", "MAX_CLOCK_OFFSET_S",
+           "MAX_CLOCK_UNCERTAINTY_S", "SAMPLES_KEPT", "ClockOffset", "ClockReport", "ClockSample",
+           "OffsetEstimate", "PeerBound", "PeerClocks", "describe_pair", "earliest_s",
+           "out_of_tolerance", "pair_table", "restamped"]
