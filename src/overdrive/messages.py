@@ -116,10 +116,10 @@ class ClockEstimate(Message, frozen=True):
     (``servers.clock_offset``): published when they move, reported in ``summary.json``."""
 
     peer: str
-    offset_s: float              # midpoint of [lo_s, hi_s]
-    lo_s: float
-    hi_s: float
-    uncertainty_s: float         # hi_s - lo_s: the best round trip plus the drift allowance
+    offset_s: float | None = None      # midpoint of [lo_s, hi_s]; None: not known (yet)
+    lo_s: float | None = None
+    hi_s: float | None = None
+    uncertainty_s: float | None = None  # hi_s - lo_s: the best round trip plus drift allowance
     worst_uncertainty_s: float = 0.0
     refusals: int = 0            # commands refused for time reasons so far
     resets: int = 0              # times the bounds crossed (a clock stepped)

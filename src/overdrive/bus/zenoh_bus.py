@@ -93,6 +93,7 @@ PUBLISHERS: dict[str, frozenset[str]] = {
     Topic.MOVE_COMMAND: SIM | {"planner"},
     Topic.MOVE_REPLY: frozenset({"move"}),
     Topic.MOVE_STATUS: frozenset({"move"}),
+    Topic.PLANNER_CLOCK: frozenset({"move"}),
     Topic.STEERING: SIM | {"move", "planner"},
     Topic.MAX_SPEED: SIM | {"move", "planner"},
     Topic.ADVANCE: SIM | {"move", "planner"},

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any
+
+FLOAT_MAX_INT = int(sys.float_info.max)
+"""The largest integer a float holds: a larger one is no finite number here."""
 
 
 def finite(*values: Any) -> bool:
@@ -12,8 +16,11 @@ def finite(*values: Any) -> bool:
     A plain loop, checked for floats first: it runs on every incoming message.
     """
     for v in values:
-        if type(v) is not float and (not isinstance(v, (int, float)) or isinstance(v, bool)):
-            return False
+        if type(v) is not float:
+            if not isinstance(v, (int, float)) or isinstance(v, bool):
+                return False
+            if isinstance(v, int) and not -FLOAT_MAX_INT <= v <= FLOAT_MAX_INT:
+                return False      # beyond any float: math.isfinite would raise OverflowError
         if not math.isfinite(v):
             return False
     return True

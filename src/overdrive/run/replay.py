@@ -43,7 +43,8 @@ VEHICLE_TOPICS = frozenset({Topic.VEHICLE_STATUS, Topic.WHEEL_SPEED, Topic.GPS_I
                             Topic.RADAR, Topic.TRUTH})
 SCENARIO_TOPICS = frozenset({Topic.SAFETY, Topic.MOVE_COMMAND, "sim/world", "sim/faults"})
 SERVER_TOPICS = {Topic.SPEED_STATE: "speed", Topic.DRIVING_STATUS: "driving",
-                 Topic.DRIVE_MODE: "move", Topic.MOVE_REPLY: "move", Topic.MOVE_STATUS: "move"}
+                 Topic.DRIVE_MODE: "move", Topic.MOVE_REPLY: "move", Topic.MOVE_STATUS: "move",
+                 Topic.PLANNER_CLOCK: "move"}
 """Topics with a single publisher among the servers (the others carry a ``source``)."""
 REL_TOL = 0.0
 """Replay is bit-for-bit: floats must match exactly (the runtime is deterministic)."""

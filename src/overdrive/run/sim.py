@@ -129,8 +129,11 @@ def clock_report(rec: Recorder) -> dict[str, Any]:
     est = rec.latest.get(Topic.PLANNER_CLOCK)
     if est is None:
         return {}
-    return {est.peer: {"offset_s": round(est.offset_s, 6), "lo_s": round(est.lo_s, 6),
-                       "hi_s": round(est.hi_s, 6), "uncertainty_s": round(est.uncertainty_s, 6),
+    def r6(value: float | None) -> float | None:
+        return None if value is None else round(value, 6)
+
+    return {est.peer: {"offset_s": r6(est.offset_s), "lo_s": r6(est.lo_s),
+                       "hi_s": r6(est.hi_s), "uncertainty_s": r6(est.uncertainty_s),
                        "worst_uncertainty_s": round(est.worst_uncertainty_s, 6),
                        "refusals": est.refusals, "resets": est.resets}}
 

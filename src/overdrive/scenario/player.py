@@ -130,6 +130,7 @@ class ScenarioPlayer:
             if body.new_session:
                 self.session += 1   # a new run of the planner: its ids start again
             self.command_id = 0
+            self.status_echo = None     # a new process has received no status yet
         elif kind == "planner_clock":
             self.clock_offset_s, self.clock_drift = body.offset_s, body.drift_ppm * 1e-6
             self.clock_since_s = now_s

@@ -72,16 +72,24 @@ class OffsetEstimate(msgspec.Struct, frozen=True):
         return self.hi_s - self.lo_s
 
 
-class ClockOffset:
-    """Bounds on one peer's clock offset from samples in both directions (module docstring)."""
+CROSSING_EPS_S = 1e-9
+"""Bounds crossing by less than this are float rounding of zero delays, not a clock step."""
 
-    __slots__ = ("_lower", "_upper", "drift_rate", "resets")
+
+class ClockOffset:
+    """Bounds on one peer's clock offset from samples in both directions (module docstring).
+
+    Crossed bounds are dealt with when a sample is added (one reset per step seen), so
+    ``estimate`` is a pure read whoever calls it and when."""
+
+    __slots__ = ("_contradicted", "_lower", "_upper", "drift_rate", "resets")
 
     def __init__(self, drift_rate: float = DRIFT_RATE, kept: int = SAMPLES_KEPT) -> None:
         self.drift_rate = drift_rate
         self._upper: deque[tuple[float, float]] = deque(maxlen=kept)   # (measured at, bound)
         self._lower: deque[tuple[float, float]] = deque(maxlen=kept)
         self.resets = 0       # times the bounds crossed and older samples were dropped
+        self._contradicted = False   # the newest pair itself crosses: unknown until new samples
 
     def received(self, now_s: float, sent_s: float) -> bool:
         """The peer's stamp ``sent_s`` arrived at ``now_s``: an upper bound. False (and nothing
@@ -89,6 +97,7 @@ class ClockOffset:
         if not (math.isfinite(now_s) and math.isfinite(sent_s)):
             return False
         self._upper.append((now_s, now_s - sent_s))
+        self._check(now_s)
         return True
 
     def echoed(self, own_sent_s: float, peer_received_s: float) -> bool:
@@ -97,12 +106,35 @@ class ClockOffset:
         if not (math.isfinite(own_sent_s) and math.isfinite(peer_received_s)):
             return False
         self._lower.append((own_sent_s, own_sent_s - peer_received_s))
+        self._check(max(own_sent_s, self._upper[-1][0] if self._upper else own_sent_s))
         return True
+
+    def _check(self, at_s: float) -> None:
+        """After a new sample: bounds that cross mean a clock stepped or drifted faster than
+        ``drift_rate``; only the newest pair counts from then on."""
+        hi, lo = self.upper_s(at_s), self.lower_s(at_s)
+        if hi is None or lo is None or lo <= hi + CROSSING_EPS_S:
+            self._contradicted = False
+            return
+        if not self._contradicted:
+            self.resets += 1
+        newest_up, newest_low = self._upper[-1], self._lower[-1]
+        self._upper.clear()
+        self._lower.clear()
+        self._upper.append(newest_up)
+        self._lower.append(newest_low)
+        hi, lo = self.upper_s(at_s), self.lower_s(at_s)
+        self._contradicted = hi is not None and lo is not None and lo > hi + CROSSING_EPS_S
 
     @property
     def upper_only(self) -> bool:
         """Stamps came one way only: the offset has an upper bound and no lower one."""
         return bool(self._upper) and not self._lower
+
+    @property
+    def contradicted(self) -> bool:
+        """The newest samples contradict each other (a clock stepped between them)."""
+        return self._contradicted
 
     def upper_s(self, now_s: float) -> float | None:
         """The tightest upper bound at ``now_s``, or None without a sample."""
@@ -116,25 +148,13 @@ class ClockOffset:
 
     def estimate(self, now_s: float) -> OffsetEstimate | None:
         """The bounds at ``now_s``; None while a direction has no sample or the newest samples
-        contradict each other (a clock stepped between them)."""
+        contradict each other. A pure read."""
+        if self._contradicted:
+            return None
         hi, lo = self.upper_s(now_s), self.lower_s(now_s)
         if hi is None or lo is None:
             return None
-        if lo > hi:
-            # a clock stepped, or drifted faster than DRIFT_RATE: only the newest pair counts
-            self.resets += 1
-            newest_up, newest_low = self._upper[-1], self._lower[-1]
-            self._upper.clear()
-            self._lower.clear()
-            self._upper.append(newest_up)
-            self._lower.append(newest_low)
-            hi, lo = self.upper_s(now_s), self.lower_s(now_s)
-            assert hi is not None and lo is not None
-            if lo > hi:
-                return None
-        return OffsetEstimate(lo, hi)
-
-
+        return OffsetEstimate(min(lo, hi), max(lo, hi))   # within CROSSING_EPS_S: one value
 
 
 # --------------------------------------------------------------------------- between processes

@@ -86,7 +86,7 @@ from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.dispatch import TypeDispatch
-from overdrive.servers.move_clock import PlannerClock, PlannerMachine
+from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, PlannerMachine
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
@@ -216,7 +216,8 @@ class MoveServer:
         self.newest_command_id: int | None = None   # the current session's newest command
         self.session: int | None = None             # the planner's current session
         self.sessions_seen: dict[int, None] = {}    # every session seen (insertion order, bounded)
-        self.newest_issued_s: float | None = None   # stamp of the newest command taken
+        self.newest_issued_s: float | None = None   # newest command taken, on this clock
+        self.stale_session_in_row = 0               # commands of earlier sessions in a row
         self.history = OdometerHistory()   # odometer by time: a command counts from its issue
         self.planner_clock = PlannerClock(cfg.planner_machine)   # when, on this clock, it was
         # issue 16: motion sensing cross-checked; progress is signed along each direction and
@@ -505,16 +506,23 @@ class MoveServer:
                                                     accepted=False, code="invalid",
                                                     message=verdict.message)))
             return
-        echo = self.planner_clock.observe(now_s, cmd)
-        if echo:
+        bad_echo = self.planner_clock.echo_problem(now_s, cmd)
+        if bad_echo:
             if cmd.kind == "stop":
-                self._stop(command_id, f"a STOP is always obeyed ({echo})", out)
+                self._stop(command_id, f"a STOP is always obeyed ({bad_echo})", out)
                 return
-            out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
-                                                    accepted=False, code="invalid",
-                                                    message=echo)))
+            self._time_refusal(command_id, kind, bad_echo, out)
             return
-        stale = self._staleness(cmd, command_id)
+        stale = self._staleness(cmd, command_id, now_s)
+        if stale.startswith("session ") and "not the planner's current session" in stale:
+            self.stale_session_in_row += 1
+            if self.stale_session_in_row == FAULT_AFTER_REFUSALS:   # no silent lock-out
+                out.append((Topic.NOTICE, Notice(
+                    kind="fault", source=SOURCE, code="planner_session",
+                    reason=f"commands of an earlier planner session keep arriving: {stale}")))
+        elif not stale:
+            self.stale_session_in_row = 0
+            self.planner_clock.observe(now_s, cmd)
         if kind == "stop":
             if not stale:
                 self.last_command_id = command_id
@@ -527,23 +535,20 @@ class MoveServer:
             verdict = self._too_steep_to_plan(cmd)
         odometer0_m = self.progress_m(direction_of(kind))
         if verdict is None and cmd.issued_s is not None:
-            anchored, why, clock = self._anchor(kind, cmd.issued_s, now_s)
+            anchored, why, clock = self._anchor(kind, cmd, now_s)
             if anchored is None:
                 # the planner's newest intent cannot be placed: it may have shortened the
                 # distance, so the command in force is not kept either (fail-safe: stop)
-                out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
-                                                        accepted=False,
-                                                        code="clock" if clock else "stale",
-                                                        message=f"{why}; stopping")))
-                if clock and self.planner_clock.refused(why):
-                    out.append((Topic.NOTICE, Notice(
-                        kind="fault", source=SOURCE, code="planner_clock",
-                        reason=f"commands refused for time reasons: {why}")))
+                if clock:
+                    self._time_refusal(command_id, kind, f"{why}; stopping", out)
+                else:
+                    out.append((Topic.MOVE_REPLY, MoveReply(
+                        command_id=command_id, kind=kind, accepted=False, code="stale",
+                        message=f"{why}; stopping")))
                 if self.active is not None:
                     self.active = None
                     self._set_phase(next_phase(self.phase, "stop_cmd"))
                 return
-            self.planner_clock.placed()
             odometer0_m = anchored
         if verdict is not None:
             out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,
@@ -555,6 +560,7 @@ class MoveServer:
         out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind, accepted=True,
                                                 message="; ".join(m for m in (clamped, short) if m))))
         self.last_command_id = command_id
+        self.planner_clock.placed()
         direction = direction_of(cmd.kind)
         if direction != self.direction:
             # the other direction's authorization is void from now on
@@ -578,12 +584,20 @@ class MoveServer:
         self.hold_clear_since_accept = False   # a "failed" hold from before is not this command's
         self._set_phase(next_phase(self.phase, event))
 
-    def _anchor(self, kind: str, issued_s: float, now_s: float
+    def _time_refusal(self, command_id: int, kind: str, why: str, out: list) -> None:
+        """Refused for the planner's clock (code ``clock``); the fault when that persists."""
+        out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind,  # type: ignore[arg-type]
+                                                accepted=False, code="clock", message=why)))
+        if self.planner_clock.refused(why):
+            out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE, code="planner_clock",
+                                             reason=f"commands refused for time reasons: {why}")))
+
+    def _anchor(self, kind: str, cmd: MoveCommand, now_s: float
                 ) -> tuple[float | None, str, bool]:
-        """The odometer in ``kind``'s direction when ``issued_s`` (the planner's clock) was,
-        at its earliest plausible time on this clock; or (None, why, whether the reason is the
-        planner's clock rather than the command's age)."""
-        at_s, why = self.planner_clock.issue_time(issued_s, now_s)
+        """The odometer in ``kind``'s direction when ``cmd`` was issued, at its earliest
+        plausible time on this clock; or (None, why, whether the reason is the planner's clock
+        rather than the command's age)."""
+        at_s, why = self.planner_clock.issue_time(cmd, now_s)
         if at_s is None:
             return None, why, True
         history = self.history_reverse if kind == "reverse" else self.history
@@ -604,16 +618,20 @@ class MoveServer:
                                      f"braking plan's {plan_mps2:.2f} m/s^2 on this friction: "
                                      "the vehicle could not stop on it")
 
-    def _staleness(self, cmd: Any, command_id: int) -> str:
+    def _staleness(self, cmd: Any, command_id: int, now_s: float) -> str:
         """Why ``cmd`` is stale ("" when it is new). A session not seen before becomes the
         current one (a restarted planner: its ids start again); an earlier session's commands
-        and ids not newer than the current session's newest are stale."""
+        and ids not newer than the current session's newest are stale. Sessions are ordered by
+        when their commands were issued on this server's clock (``PlannerClock.placed_s``): a
+        restarted planner may be on another machine's clock."""
         session = getattr(cmd, "session", 0)
         if not isinstance(session, int) or isinstance(session, bool):
             session = 0
         issued_s = getattr(cmd, "issued_s", None)
         if not isinstance(issued_s, float) or not math.isfinite(issued_s):
             issued_s = None
+        elif isinstance(cmd, MoveCommand):
+            issued_s = self.planner_clock.placed_s(cmd, now_s)
         if session != self.session:
             if session in self.sessions_seen:
                 return f"session {session} is not the planner's current session {self.session}"
@@ -627,6 +645,7 @@ class MoveServer:
                 return (f"session {session} issued at t={issued_s:.3f} s, before the current "
                         f"session {self.session}'s newest command (t={newest_s:.3f} s)")
             self.session, self.newest_command_id = session, None
+            self.planner_clock.new_session()
         newest = self.newest_command_id
         if newest is not None and command_id <= newest:
             return f"command_id {command_id} is not newer than {newest}: reordered or repeated"
@@ -658,7 +677,7 @@ class MoveServer:
             return
         odometer0_m = self.progress_m(direction)
         if cmd.issued_s is not None:
-            anchored, when, _clock = self._anchor(cmd.kind, cmd.issued_s, now_s)
+            anchored, when, _clock = self._anchor(cmd.kind, cmd, now_s)
             if anchored is None:
                 # where it was issued is unknown, so how much closer its end is too: it may
                 # shorten the command in force to anything: stop (fail-safe, as a new command)
@@ -925,6 +944,7 @@ class MoveServer:
             command_id=self.last_command_id, phase=self.phase,
             remaining_m=self.remaining_m if self.active is not None else 0.0,
             latched_estop=self.latched, reason=reason, sent_s=now_s)))
+        self.planner_clock.status_sent(now_s)
         if now_s + TIME_EPS_S >= self.next_estimates_s:
             out.append((ESTIMATES_TOPIC, self.model.message()))
             self.next_estimates_s += cfg.estimates_period_s

@@ -75,8 +75,10 @@ def invalid_reason(cmd: object) -> str:
         return f"not a MoveCommand ({type(cmd).__name__})"
     if cmd.kind not in KINDS:
         return f"kind {cmd.kind!r} is not one of {', '.join(KINDS)}"
-    if cmd.issued_s is not None and not finite(cmd.issued_s):
-        return f"issued_s {cmd.issued_s!r} is not a finite number"
+    for name in ("issued_s", "status_sent_s", "status_received_s"):
+        value = getattr(cmd, name)
+        if value is not None and not finite(value):
+            return f"{name} {value!r} is not a finite number"
     if cmd.kind == "stop":
         return ""
     for name in ("distance_m", "maxspeed_mps", "curvature_1pm"):
