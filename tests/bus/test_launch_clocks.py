@@ -131,3 +131,36 @@ def test_a_node_whose_clock_drifts_300_ppm_completes(run_dir: Path) -> None:
     assert all(r["reason"] == "" for r in pairs.values()), pairs
     # 500 ppm of drift between them over a few seconds: a millisecond or two
     assert pairs[("speed", "driving")]["offset_s"] == pytest.approx(-0.08, abs=0.005)
+
+
+@retry_when_stalled
+def test_a_planner_ahead_of_the_move_servers_clock_is_placed_across_processes(
+        run_dir: Path) -> None:
+    """The move server's process 0.12 s behind the launcher (the planner): with
+    ``planner_machine: separate`` the player echoes MoveStatus, each command is placed from its
+    echo and the MOVE completes; told ``same`` and not echoing, its stamps are 0.12 s ahead:
+    refused (``clock``) with a ``planner_clock`` fault, nothing moves, the run fails."""
+    offsets = {"move": (-0.12, 0.0)}
+    scenario = parse_scenario({**MOVE_SCENARIO, "planner_machine": "separate"}, "planner-ahead")
+    with Launch(scenario, run_dir / "sep", listen="", plot=False, clock_offsets=offsets) as launch:
+        launch.start()
+        result = launch.run()
+    summary = result.summary
+    check_undisturbed(summary)
+    assert result.exit_code == 0, summary["violations"]
+    planner = summary["clocks"]["planner"]
+    assert planner["refusals"] == 0 and planner["lo_s"] <= -0.12 <= planner["hi_s"], planner
+    assert summary["odometer_m"] == pytest.approx(10.0, abs=0.6)
+
+    scenario = parse_scenario({**MOVE_SCENARIO, "events": [
+        *MOVE_SCENARIO["events"],
+        {"at_s": 1.0, "move": {"distance_m": 10, "maxspeed_mps": 4, "curvature_1pm": 0}}]},
+        "planner-ahead-same")
+    with Launch(scenario, run_dir / "same", listen="", plot=False,
+                clock_offsets=offsets) as launch:
+        launch.start()
+        result = launch.run()
+    summary = result.summary
+    assert result.exit_code == 1
+    assert [e for e in summary["events"] if e.get("code") == "planner_clock"], summary["events"]
+    assert summary["odometer_m"] < 0.05
