@@ -50,8 +50,10 @@ def test_a_clock_step_drops_the_older_samples_and_bounds_the_new_offset():
     assert clock.estimate(1.0) is not None
     # the peer's clock steps 0.3 s ahead: offset -0.3
     clock.received(1.005, 1.3)               # upper bound -0.295 < older lower bounds -0.005
-    assert clock.estimate(1.005) is None     # the newest pair still contradicts: unknown
+    assert clock.estimate(1.005) is None and clock.contradicted   # which lied? none kept
     clock.echoed(1.01, 1.315)                # lower bound -0.305
+    assert clock.estimate(1.01) is None      # one direction only
+    clock.received(1.016, 1.31)              # upper bound -0.294
     est = clock.estimate(1.02)
     assert est is not None and est.lo_s <= -0.3 <= est.hi_s
     assert clock.resets >= 1

@@ -29,6 +29,8 @@ def _exchange(a: PeerClocks, b: PeerClocks, b_ahead_s: float, steps: int = 20,
     ``b_ahead_s`` more than ``a``'s. Returns ``a``'s time at the end."""
     t = 10.0
     for k in range(steps):
+        b.sent(t + b_ahead_s)                                       # each publishes ...
+        a.sent(t)
         a.received("b", t + delay_ba_s, t + b_ahead_s)              # b sent at t (its clock)
         b.received("a", t + delay_ab_s + b_ahead_s, t)              # a sent at t
         if k % 10 == 9:

@@ -552,8 +552,11 @@ class ZenohBus:
                     key, express=self.express, congestion_control=zenoh.CongestionControl.DROP,
                     reliability=zenoh.Reliability.BEST_EFFORT, priority=zenoh.Priority.DATA)
             self._publishers[topic] = publisher
+        sent_s = self.clock()
+        with self._lock:
+            self.clocks.sent(sent_s)      # a peer's report may name this stamp (and no other)
         try:
-            frame = self.registry.encode(msg, self.sender, self.clock())
+            frame = self.registry.encode(msg, self.sender, sent_s)
         except (TypeError, ValueError, OverflowError, msgspec.EncodeError):   # never crash the node
             name = type(msg).__name__
             self.stats.unencodable[name] = self.stats.unencodable.get(name, 0) + 1

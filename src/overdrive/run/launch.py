@@ -396,7 +396,7 @@ class Launch:
         self.clock_rows: list[dict[str, Any]] = []
         """The pairs' clock offsets as last judged (``servers.clock_offset.pair_table``)."""
         self._clock_worst: dict[tuple[str, str], dict[str, float]] = {}
-        self._clock_faulted: set[tuple[str, str]] = set()
+        self._clock_faulted: set[tuple[str, str, str]] = set()
         self._clock_checked_s = -math.inf
         self.recorder: Any = None
         """The run's Recorder while ``run`` plays (``on_tick`` may read ``recorder.latest``)."""
@@ -596,14 +596,15 @@ class Launch:
             time.sleep(0.002)
 
     def _watch_clocks(self, now_s: float) -> None:
-        """During the run: a pair beyond tolerance is reported once as a fault notice."""
+        """During the run: a pair beyond tolerance (or whose offset was known and is lost) is
+        reported as a fault notice, again whenever its reason changes."""
         if now_s < self._clock_checked_s + CLOCK_CHECK_PERIOD_S or self.bus is None:
             return
         self._clock_checked_s = now_s
         for row in self.judge_clocks():
-            pair = (row["a"], row["b"])
-            if row["reason"] and row["offset_s"] is not None and pair not in self._clock_faulted:
-                self._clock_faulted.add(pair)
+            key = (row["a"], row["b"], row["reason"])
+            if row["reason"] and row["offset_s"] is not None and key not in self._clock_faulted:
+                self._clock_faulted.add(key)
                 self.bus.publish(Topic.NOTICE, Notice(kind="fault", source=LAUNCHER_USER,
                                                       code="clock_offset", reason=describe_pair(row)))
 

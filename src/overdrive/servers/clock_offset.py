@@ -15,9 +15,9 @@ the bounds do not). A caller that must not overestimate how recent a peer's stam
 it with ``lo_s`` (the earliest it can have been on this clock); one that must not
 underestimate, with ``hi_s``.
 
-Bounds that cross (``lo_s > hi_s``) mean a clock stepped or drifted faster than allowed: the
-older samples are dropped and the newest pair judged alone; crossing again, the offset is
-unknown (``None``) until new samples agree. Pure: times are passed in.
+Bounds that cross (``lo_s > hi_s``) mean a clock stepped, drifted faster than allowed, or a
+sample lied: every sample is dropped and the offset is unknown (``None``) until both directions
+are measured again. Pure: times are passed in.
 """
 
 from __future__ import annotations
@@ -89,42 +89,42 @@ class ClockOffset:
         self._upper: deque[tuple[float, float]] = deque(maxlen=kept)   # (measured at, bound)
         self._lower: deque[tuple[float, float]] = deque(maxlen=kept)
         self.resets = 0       # times the bounds crossed and older samples were dropped
-        self._contradicted = False   # the newest pair itself crosses: unknown until new samples
+        self._contradicted = False   # bounds crossed, not measured both ways since
 
     def received(self, now_s: float, sent_s: float) -> bool:
         """The peer's stamp ``sent_s`` arrived at ``now_s``: an upper bound. False (and nothing
         kept) for a time that is not finite."""
-        if not (math.isfinite(now_s) and math.isfinite(sent_s)):
-            return False
-        self._upper.append((now_s, now_s - sent_s))
+        bound = now_s - sent_s
+        if not (math.isfinite(now_s) and math.isfinite(bound)):
+            return False         # (huge finite times overflow to an infinite bound)
+        self._upper.append((now_s, bound))
         self._check(now_s)
         return True
 
     def echoed(self, own_sent_s: float, peer_received_s: float) -> bool:
         """The peer received this side's ``own_sent_s`` at ``peer_received_s`` (its clock): a
         lower bound, dated at ``own_sent_s`` (the earliest it can be: the widest drift)."""
-        if not (math.isfinite(own_sent_s) and math.isfinite(peer_received_s)):
+        bound = own_sent_s - peer_received_s
+        if not (math.isfinite(own_sent_s) and math.isfinite(bound)):
             return False
-        self._lower.append((own_sent_s, own_sent_s - peer_received_s))
+        self._lower.append((own_sent_s, bound))
         self._check(max(own_sent_s, self._upper[-1][0] if self._upper else own_sent_s))
         return True
 
     def _check(self, at_s: float) -> None:
-        """After a new sample: bounds that cross mean a clock stepped or drifted faster than
-        ``drift_rate``; only the newest pair counts from then on."""
+        """After a new sample: bounds that cross mean a clock stepped, drifted faster than
+        ``drift_rate``, or a sample lied. Which one is wrong cannot be told, so none is kept:
+        the offset is unknown until both directions are measured again."""
         hi, lo = self.upper_s(at_s), self.lower_s(at_s)
-        if hi is None or lo is None or lo <= hi + CROSSING_EPS_S:
+        if hi is None or lo is None:
+            return
+        if lo <= hi + CROSSING_EPS_S:
             self._contradicted = False
             return
-        if not self._contradicted:
-            self.resets += 1
-        newest_up, newest_low = self._upper[-1], self._lower[-1]
+        self.resets += 1
         self._upper.clear()
         self._lower.clear()
-        self._upper.append(newest_up)
-        self._lower.append(newest_low)
-        hi, lo = self.upper_s(at_s), self.lower_s(at_s)
-        self._contradicted = hi is not None and lo is not None and lo > hi + CROSSING_EPS_S
+        self._contradicted = True
 
     @property
     def upper_only(self) -> bool:
@@ -133,7 +133,7 @@ class ClockOffset:
 
     @property
     def contradicted(self) -> bool:
-        """The newest samples contradict each other (a clock stepped between them)."""
+        """The bounds crossed (a clock stepped) and have not been measured both ways since."""
         return self._contradicted
 
     def upper_s(self, now_s: float) -> float | None:
@@ -187,16 +187,31 @@ class ClockReport(Message, frozen=True):
     bounds: tuple[PeerBound, ...] = ()
 
 
+FAIL_SAFE_S = 3600.0
+"""Bounds given for a peer whose offset was known and is no longer (bounds crossed: a clock
+stepped or drifted beyond ``DRIFT_RATE``, a restarted process on another clock, a report that
+does not fit): +-1 h, so its stamps convert to an hour early: older than any watchdog or
+authorization accepts (the vehicle stops), never later than the truth; and beyond tolerance,
+so the pair is reported. A peer never known yet is taken as one host, one clock."""
+
+OWN_STAMPS_KEPT = 4096
+"""This process's own recent send stamps (a few seconds of everything it publishes): a peer's
+report may only name one of them (``PeerClocks.report``)."""
+
+
 class PeerClocks:
     """One ``ClockOffset`` per peer (frame sender), fed from every stamped frame received and
     from the peers' ``ClockReport``s. Pure: times are passed in, on this process's clock (the
     raw clock, not a run's ``now_s`` axis: the offset is the same on both)."""
 
-    __slots__ = ("_fastest", "drift_rate", "latest", "name", "peers")
+    __slots__ = ("_fastest", "_own", "_own_set", "drift_rate", "known", "latest", "name", "peers")
 
     def __init__(self, name: str, drift_rate: float = DRIFT_RATE) -> None:
         self.name = name
         self.drift_rate = drift_rate
+        self.known: set[str] = set()          # peers whose offset has been known
+        self._own: deque[float] = deque()
+        self._own_set: set[float] = set()
         self.peers: dict[str, ClockOffset] = {}
         self.latest: dict[str, ClockReport] = {}     # each peer's newest report
         self._fastest: dict[str, tuple[float, float]] = {}   # peer -> (sent, received) since report
@@ -215,18 +230,35 @@ class PeerClocks:
         if fastest is None or now_s - sent_s < fastest[1] - fastest[0]:
             self._fastest[peer] = (sent_s, now_s)
 
+    def sent(self, sent_s: float) -> None:
+        """This process stamped a frame ``sent_s``."""
+        self._own.append(sent_s)
+        self._own_set.add(sent_s)
+        if len(self._own) > OWN_STAMPS_KEPT:
+            self._own_set.discard(self._own.popleft())
+
     def report(self, report: ClockReport) -> None:
-        """A peer's report: its fastest sample of our frames is a lower bound here."""
+        """A peer's report: its fastest sample of our frames is a lower bound here, if it names
+        a stamp this process sent (a report that does not is no sample: forged or garbled)."""
         if report.source == self.name:
             return
         self.latest[report.source] = report
         for sample in report.samples:
-            if sample.peer == self.name:
+            if sample.peer == self.name and sample.sent_s in self._own_set:
                 self._peer(report.source).echoed(sample.sent_s, sample.received_s)
 
     def estimates(self, now_s: float) -> dict[str, OffsetEstimate | None]:
-        """Every peer's bounds at ``now_s`` (None: not known yet)."""
-        return {peer: clock.estimate(now_s) for peer, clock in self.peers.items()}
+        """Every peer's bounds at ``now_s``: None while never known; +-``FAIL_SAFE_S`` once
+        known and no longer (fail-safe: its stamps are then an hour old)."""
+        out: dict[str, OffsetEstimate | None] = {}
+        for peer, clock in self.peers.items():
+            est = clock.estimate(now_s)
+            if est is not None:
+                self.known.add(peer)
+            elif peer in self.known:
+                est = OffsetEstimate(-FAIL_SAFE_S, FAIL_SAFE_S)
+            out[peer] = est
+        return out
 
     def make_report(self, now_s: float) -> ClockReport:
         """This process's report; the fastest samples start again from here."""
@@ -260,6 +292,12 @@ def out_of_tolerance(estimate: OffsetEstimate | None, max_offset_s: float = MAX_
     """Why two processes must not drive together on these bounds, or ""."""
     if estimate is None:
         return "offset unknown"
+    if not (math.isfinite(estimate.lo_s) and math.isfinite(estimate.hi_s)) \
+            or estimate.lo_s > estimate.hi_s:
+        return "bounds invalid"
+    if estimate.uncertainty_s >= 2.0 * FAIL_SAFE_S:
+        return (f"offset lost (its bounds crossed: a clock stepped or drifted beyond "
+                f"{DRIFT_RATE * 1e6:.0f} ppm, or a report did not fit)")
     if abs(estimate.offset_s) > max_offset_s:
         return f"offset beyond {max_offset_s * 1e3:.0f} ms"
     if estimate.uncertainty_s > max_uncertainty_s:
@@ -287,7 +325,10 @@ def pair_table(names: Iterable[str],
                 resets += bound.resets
                 lo, hi = (-bound.hi_s, -bound.lo_s) if sign < 0 else (bound.lo_s, bound.hi_s)
                 ends.append(OffsetEstimate(lo, hi))
-            reason = next((r for r in map(out_of_tolerance, ends) if r), "")
+            reasons = [r for r in map(out_of_tolerance, ends) if r]
+            # what is known beyond tolerance says more than an end that knows nothing
+            reason = next((r for r in reasons if r != "offset unknown"), reasons[0] if reasons
+                          else "")
             row: dict[str, Any] = {"a": a, "b": b, "offset_s": None, "uncertainty_s": None,
                                    "lo_s": None, "hi_s": None, "resets": resets, "reason": reason}
             known = [e for e in ends if e is not None]
@@ -311,7 +352,7 @@ def describe_pair(row: Mapping[str, Any]) -> str:
             f"{row['uncertainty_s'] * 1e3:.1f} ms)" + (f": {row['reason']}" if row["reason"] else ""))
 
 
-__all__ = ["CLOCK_REPORT_PERIOD_S", "CLOCK_REPORT_TOPIC", "DRIFT_RATE", "MAX_CLOCK_OFFSET_S",
+__all__ = ["CLOCK_REPORT_PERIOD_S", "CLOCK_REPORT_TOPIC", "DRIFT_RATE", "FAIL_SAFE_S", "MAX_CLOCK_OFFSET_S",
            "MAX_CLOCK_UNCERTAINTY_S", "SAMPLES_KEPT", "ClockOffset", "ClockReport", "ClockSample",
            "OffsetEstimate", "PeerBound", "PeerClocks", "describe_pair", "earliest_s",
            "out_of_tolerance", "pair_table", "restamped"]

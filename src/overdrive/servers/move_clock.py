@@ -129,11 +129,17 @@ class PlannerClock:
         return ""
 
     def observe(self, now_s: float, cmd: MoveCommand) -> None:
-        """Take a current-session command's stamp and echo as bounds on the offset."""
-        if cmd.status_sent_s is not None and cmd.status_received_s is not None:
-            self.offset.echoed(cmd.status_sent_s, cmd.status_received_s)
-        if cmd.issued_s is not None:
-            self.offset.received(now_s, cmd.issued_s)
+        """Take a current-session command's stamp and echo as bounds on the offset. When they
+        cross the older bounds (which are then dropped), the command's own pair starts them
+        again: it is consistent by itself, so the tolerance is judged on it."""
+        resets = self.offset.resets
+        for _ in range(2):
+            if cmd.status_sent_s is not None and cmd.status_received_s is not None:
+                self.offset.echoed(cmd.status_sent_s, cmd.status_received_s)
+            if cmd.issued_s is not None:
+                self.offset.received(now_s, cmd.issued_s)
+            if self.offset.resets == resets:
+                return
 
     def placed_s(self, cmd: MoveCommand, now_s: float) -> float | None:
         """Where ``cmd``'s stamp falls on this clock, tolerance aside (for ordering sessions):
