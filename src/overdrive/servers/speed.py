@@ -195,6 +195,7 @@ class SpeedServer:
         self.client_fault = 0
         self.estop_reason = ""
         self.estop_code = 0      # the fault code that latched the e-stop (SpeedState.estop_code)
+        self.estop_since_s = -math.inf   # when it was latched
         self.fault = 0
         self.fault_message = ""
         self.fault_since_s = -math.inf
@@ -408,13 +409,18 @@ class SpeedServer:
         self.last_rejection = None
         self._feed_watchdog(now_s, now_s if sent_s is None else sent_s)
         if self.latched:
+            sent = now_s if sent_s is None else sent_s
             if (self.engine_cut or self.sensor_lost or not self.stopped
-                    or (spss.state == "run" and self.estop_code > CLIENT_FAULT_MAX)):
+                    or (self.estop_code > CLIENT_FAULT_MAX
+                        and (spss.state == "run" or not now_s > self.estop_since_s + TIME_EPS_S
+                             or not sent > self.estop_since_s))):
                 return False   # not executed: the e-stop holds until the vehicle has stopped;
                                # one the client did not ask for (the server's own code) until
                                # it asks for a state that does not move (it has seen the stop:
-                               # the old command never drives on by itself); an actuator
-                               # fault holds for good: the actuator needs a human
+                               # the old command never drives on by itself), sent after the
+                               # stop began (a request queued during a stall of this server
+                               # was sent before the client could know); an actuator fault
+                               # holds for good: the actuator needs a human
             self.estop_reason, self.estop_code = "", 0
         self._accept(spss)
         if self.fault and now_s - self.fault_since_s >= self.config.fault_hold_s - TIME_EPS_S:
@@ -488,6 +494,7 @@ class SpeedServer:
     def _estop(self, reason: str, out: list, code: int) -> None:
         if not self.estop_reason:
             self.estop_code = code   # the first cause names the stop while it is latched
+            self.estop_since_s = self.last_now_s if self.last_now_s is not None else 0.0
         self.estop_reason = reason
         out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code=str(code),
                                          reason=reason)))
