@@ -228,6 +228,8 @@ class SpeedState(Message, frozen=True):
     hint: Hint = "none"
     estop: bool = False
     direction_hold: DirectionHoldState = "free"   # hill start / rollback hold; failed: held after a fault
+    estop_code: int = 0            # the fault that latched the e-stop: 1..999 a client's (asked
+                                   # for), 1001+ the server's own (watchdog, timeouts, actuators)
 
 
 # --------------------------------------------------------------------------- actuators
@@ -290,6 +292,8 @@ class VehicleStatus(Message, frozen=True):
     safety_mode: str
     computer_speed: bool = True    # partial mode: computer controls throttle/brake
     computer_steering: bool = True
+    command_timeout: bool = False  # the vehicle's own pedal-command timeout brake is holding
+                                   # (released only by the stack's restart: a runwait)
 
 
 class WheelSpeed(Message, frozen=True):

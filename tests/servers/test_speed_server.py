@@ -554,9 +554,15 @@ def test_watchdog_estop_at_200_ms_and_latched_until_stopped_and_valid():
     # SPSS resume while still rolling: still latched; an invalid one does not clear it either
     rig.tick(spss("run", 5.0, 2.0, gear="bogus"))
     assert rig.server.latched
+    # stopped, the old "run" keeps coming: the client has not seen the stop, nothing clears
+    # (issue 38: the old command never drives on by itself)
     rig.run(4.0, spss("run", 5.0, 2.0))
+    assert rig.server.latched and rig.server.state == "idle"
+    # a request for a state that does not move clears it; run again only after the 5 s wait
+    rig.tick(spss("idle", 0.0, 2.0))
     assert not rig.server.latched
-    assert rig.server.state == "runwait"              # motion again only after the 5 s wait
+    rig.run(0.5, spss("run", 5.0, 2.0))
+    assert rig.server.state == "runwait"
 
 
 def test_watchdog_not_armed_before_the_first_spss():

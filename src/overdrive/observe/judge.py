@@ -32,7 +32,11 @@ Rules (docs/reliability.md, docs/safety-case.md):
    the seed-000 table: SafeStop pause or stop, e-stop button, manual overrides, door, internal
    error; or the human taking speed control in a partial mode), the vehicle moves no further
    than its shortest stop from the speed it had then (+0.10 m) until a command issued after
-   that moment.
+   that moment. The same after a stop the stack did not ask for (issue 38): SPSS delivered to
+   the speed server more than 200 ms apart (its watchdog), the vehicle's own command timeout,
+   or an emergency stop the speed server raised on its own (a fault code above the clients'
+   1..999): once the vehicle has come to rest after it, it moves no more than 0.10 m until a
+   new command.
 5. **watchdog**: on SPSS as delivered to the speed server, an emergency stop (throttle 0,
    brake >= 99 % from the speed server) within 200 ms plus one control period of the last one,
    held until SPSS are delivered again; the amount is how late (or how long missing).
@@ -76,6 +80,7 @@ LIMIT_RAMP_DECEL_MPS2 = 1.0   # a lowered limit must be met at least this fast: 
                               # ignores the limit is over it within a second or two
 MAX_SPEED_TTL_S = 0.5         # docs/driving-module.md: a limit not refreshed for 0.5 s lapses
 MOTION_TOLERANCE_M = 0.10     # unintended motion: same as the direction tolerance
+CLIENT_FAULT_MAX = 999        # seed 001: a client's fault codes; the speed server's own start at 1001
 ELLIPSE_TOLERANCE = 0.15      # plant tolerance: actuator lags and tyre-model transients
 ESTOP_DISABLE_BRAKE_S = 0.5   # brake actuator reaches full effort within ~5 time constants
 MIN_DECEL_MPS2 = 0.1          # floor of the physical decel: on a slope steeper than the tyres
@@ -231,6 +236,8 @@ class Monitor:
         self.interrupt: str | None = None
         self._interrupt_since_s = 0.0
         self.after_interrupt: tuple[float, float, float] | None = None  # (anchor, allowed, ended at)
+        self.unasked_stop: tuple[str, float] | None = None   # (cause, since): not at rest yet
+        self.after_stop: tuple[float, float, str] | None = None  # (anchor, at rest since, cause)
         # watchdog (delivered SPSS)
         self.last_spss_s: float | None = None
         self.estop_active = False       # the speed server's latest pedals are the emergency stop
@@ -320,6 +327,7 @@ class Monitor:
     def _new_command(self, direction: int | None, slack_m: float = 0.0) -> None:
         """A command binds now: it ends a hold and any post-interruption stand-still."""
         self.after_interrupt = None
+        self.unasked_stop = self.after_stop = None
         if direction is not None and direction != self.direction:
             self.furthest_m = self.progress_m
             self._direction_slack_m = slack_m
@@ -448,6 +456,14 @@ class Monitor:
     def _notice(self, msg: Any) -> None:
         if msg.kind == "rejected" and msg.code == "no_control":
             self.rejected_seen += 1
+        elif msg.kind == "estop" and (msg.source == "vehicle" or (
+                msg.source == "speed" and msg.code.isdigit() and int(msg.code) > CLIENT_FAULT_MAX)):
+            self._unasked_stop(msg.code or msg.source)
+
+    def _unasked_stop(self, cause: str) -> None:
+        """A stop the stack did not ask for began: once at rest, the vehicle stays there."""
+        if self.unasked_stop is None and self.after_stop is None:
+            self.unasked_stop = (cause, self.now_s)
 
     def _world(self, msg: Any) -> None:
         self.friction = msg.friction
@@ -503,6 +519,9 @@ class Monitor:
             self._authorization()
             self._direction()
             self._speed(dt_s)
+        if self.unasked_stop is not None and abs(truth.speed_mps) < STOPPED_MPS:
+            self.after_stop = (self.progress_m, self.now_s, self.unasked_stop[0])
+            self.unasked_stop = None
         self._unintended_motion()
         if truth.contact:
             self._violate("contact", "contact", abs(truth.speed_mps), "m/s",
@@ -575,6 +594,15 @@ class Monitor:
                           f"t={self._excess_since_s:.2f} s)", worst=True)
 
     def _unintended_motion(self) -> None:
+        if self.after_stop is not None:
+            anchor, rest_s, cause = self.after_stop
+            travel = abs(self.progress_m - anchor)
+            allowed = MOTION_TOLERANCE_M + self.position_noise_m
+            if travel > allowed:
+                self._violate("unintended_motion", "unintended_motion", travel - allowed, "m",
+                              f"moved {travel:.3f} m after the stop the stack did not ask for "
+                              f"({cause}; at rest at t={rest_s:.2f} s) with no new command",
+                              worst=True)
         if self.after_interrupt is None or self.interrupt is not None:
             return
         anchor, allowed, ended_s = self.after_interrupt
@@ -616,6 +644,8 @@ class Monitor:
                                                  f"{STOP_DELIVERY_S:.1f} s: not judged"})
         if self.last_spss_s is None:
             return
+        if now_s - self.last_spss_s > WATCHDOG_S + EPS_S:
+            self._unasked_stop("watchdog")   # the speed server's watchdog must stop it
         deadline_s = self.last_spss_s + WATCHDOG_S + self.period_s
         if now_s <= deadline_s + EPS_S:
             return

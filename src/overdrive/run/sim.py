@@ -24,9 +24,10 @@ from overdrive.observe.run_files import open_trace, write_summary
 from overdrive.run.compose import build_nodes
 from overdrive.runtime.lockstep import DEFAULT_PERIOD_S, LockstepRuntime, Node
 from overdrive.scenario.expect import check
-from overdrive.scenario.player import channel_faults
+from overdrive.scenario.player import channel_faults, stall_windows
 from overdrive.scenario.schema import (
     Scenario,
+    ScenarioError,
 )
 
 
@@ -81,7 +82,11 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         monitor = make_monitor(scenario, period_s, position_noise_m)
         bus.tap(monitor.observe)
         bus.tap_delivered(monitor.observe_delivered, DELIVERED_TOPICS)
-        runtime = LockstepRuntime(mcap.wrap(nodes) if mcap else nodes, bus, period_s)
+        try:
+            runtime = LockstepRuntime(mcap.wrap(nodes) if mcap else nodes, bus, period_s,
+                                      stalls=stall_windows(scenario))
+        except ValueError as exc:
+            raise ScenarioError(scenario.source, "events", str(exc)) from exc
         duration_s = scenario.spec.duration_s
         wall_start = time.monotonic()
         end_tick = round(duration_s / period_s)

@@ -37,9 +37,22 @@ class LockstepRuntime:
     """
 
     def __init__(self, nodes: Sequence[Node], bus: LocalBus | None = None,
-                 period_s: float = DEFAULT_PERIOD_S) -> None:
+                 period_s: float = DEFAULT_PERIOD_S,
+                 stalls: Sequence[tuple[str, float, float]] = ()) -> None:
+        """``stalls``: (node name, start, end) windows in which that node is not stepped and
+        its inbox accumulates, as a process stopped (SIGSTOP) then resumed: on resume it steps
+        once with everything queued and a time step as long as the stall."""
         if not period_s > 0:
             raise ValueError(f"period_s must be positive, got {period_s}")
+        names = {node.name for node in nodes}
+        for name, start_s, end_s in stalls:
+            if name not in names:
+                raise ValueError(f"stall: no node {name!r} in this run ({', '.join(sorted(names))})")
+            if not end_s > start_s:
+                raise ValueError(f"stall of {name}: ends at {end_s} s, not after {start_s} s")
+        # in ticks: stepped again on the first tick at or after the end
+        self._stalls = [(name, round(start_s / period_s), round(end_s / period_s))
+                        for name, start_s, end_s in stalls]
         self.bus = bus or LocalBus()
         self.period_s = period_s
         self.tick = 0
@@ -62,9 +75,13 @@ class LockstepRuntime:
         bus = self.bus
         bus.pump()
         publish_all = bus.publish_all
+        stalls = self._stalls
         for node, every, inbox in self._slots:
             if tick % every:
                 continue
+            if stalls and any(name == node.name and start <= tick < end
+                              for name, start, end in stalls):
+                continue   # stalled: not stepped, its inbox accumulates
             received = inbox[:]
             inbox.clear()
             publish_all(node.step(now_s, received))

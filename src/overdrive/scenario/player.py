@@ -61,6 +61,12 @@ def channel_faults(scenario: Scenario) -> ChannelFaults:
     return faults
 
 
+def stall_windows(scenario: Scenario) -> list[tuple[str, float, float]]:
+    """The scenario's ``stall`` events as (node, start, end) for the lock-step runtime."""
+    return [(e.body.node, e.at_s, e.at_s + e.body.for_s) for e in scenario.events
+            if e.kind == "stall"]
+
+
 class ScenarioPlayer:
     """Plays the scenario's events. As the planner it stamps commands on its own clock (the
     stack's unless a ``planner_clock`` event offsets it) and, on another machine
@@ -209,4 +215,5 @@ class ScenarioPlayer:
                 changes_w["obstacles"] = tuple((o.x_m, o.y_m) for o in body.obstacles)
             self.world = msgspec.structs.replace(self.world, **changes_w)
             out.append((SIM_WORLD_TOPIC, self.world))
-        # drop, delay, duplicate and reorder are applied by ChannelFaults on the bus
+        # drop, delay, duplicate and reorder are applied by ChannelFaults on the bus; stall by
+        # the runtime (stall_windows)

@@ -177,6 +177,18 @@ class PlannerClockSpec(Spec, frozen=True):
     echo: bool = True
 
 
+StallNode = Literal["move", "driving", "speed"]
+"""The stack's nodes a ``stall`` event may freeze (the vehicle's physics never stalls)."""
+
+
+class StallSpec(Spec, frozen=True):
+    """The node is not stepped for ``for_s`` and its inbox accumulates, as a process stopped
+    (SIGSTOP) then resumed (SIGCONT): on resume it steps once with everything queued."""
+
+    node: StallNode
+    for_s: Annotated[float, msgspec.Meta(gt=0.0, le=60.0)]
+
+
 class EventSpec(Spec, frozen=True):
     """One timed event: ``at_s`` plus exactly one kind."""
 
@@ -208,6 +220,7 @@ class EventSpec(Spec, frozen=True):
     world: WorldChangeSpec | None = None
     planner_restart: PlannerRestartSpec | None = None
     planner_clock: PlannerClockSpec | None = None
+    stall: StallSpec | None = None
 
     @property
     def kind(self) -> str:

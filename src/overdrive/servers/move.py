@@ -90,6 +90,7 @@ from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, Pla
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
+from overdrive.servers.speed_table import estop_cause
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
@@ -112,7 +113,8 @@ EVENTS: dict[str, str] = {
     "done": "the distance is used up and the vehicle stands",
     "stopped": "the vehicle stands after a STOP",
     "estop": "radar target inside the stopping distance plus margin",
-    "interrupt": "the vehicle left drive-by-wire or speed control: the command is discarded",
+    "interrupt": "the vehicle left drive-by-wire or speed control, or the speed server stopped "
+                 "it on its own (watchdog, a timeout): the command is discarded",
     "failed": "the speed server holds the vehicle after a direction fault (rollback, a grade the "
               "gear cannot climb, issue 16): the command is abandoned, never done",
 }
@@ -240,6 +242,7 @@ class MoveServer:
         self.radar: Radar | None = None
         self.status: VehicleStatus | None = None
         self.speed_state: SpeedState | None = None
+        self.speed_stop_code = 0   # an e-stop the speed server latched on its own, since last step
         self.hold_clear_since_accept = False   # a non-failed direction hold seen since accepted
         self.driving: DrivingStatus | None = None
         self.wheel_mps: float | None = None
@@ -363,6 +366,8 @@ class MoveServer:
 
     def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
         self.speed_state = msg
+        if msg.estop and estop_cause(msg.estop_code):
+            self.speed_stop_code = msg.estop_code   # any report of the step counts (issue 38)
         if msg.direction_hold != "failed":
             self.hold_clear_since_accept = True
 
@@ -789,10 +794,19 @@ class MoveServer:
         return True
 
     def _interruption(self, out: list) -> bool:
-        """True on the period an engaged vehicle is interrupted: the command is discarded."""
+        """True on the period an engaged vehicle is interrupted: the command is discarded.
+
+        An interruption is the vehicle leaving drive-by-wire or speed control (seed 000), or a
+        stop the stack did not ask for: an emergency stop the speed server latched on its own
+        (``SpeedState.estop_code`` above the client range: its SPSS watchdog, a sensor or
+        vehicle command timeout, an actuator fault). Either way nothing moves until a new
+        command."""
         status = self.status
-        if (not self.engaged or self.phase == "estopped" or status is None
-                or (status.safety_mode == "drive-by-wire" and status.computer_speed)):
+        stop_code, self.speed_stop_code = self.speed_stop_code, 0
+        if not self.engaged or self.phase == "estopped" or status is None:
+            return False
+        mode_ok = status.safety_mode == "drive-by-wire" and status.computer_speed
+        if mode_ok and not stop_code:
             return False
         discarded = self.active
         self.active = None
@@ -801,6 +815,15 @@ class MoveServer:
         self.hold_state = "parked" if engine_off else "paused"
         what = (f"command {discarded.command.command_id} discarded" if discarded is not None
                 else "no command active")
+        if mode_ok:
+            ss = self.speed_state
+            message = ss.fault_message if ss is not None and ss.fault == stop_code else ""
+            out.append((Topic.NOTICE, Notice(
+                kind="interrupted", source=SOURCE, code=estop_cause(stop_code),
+                reason=f"speed server emergency stop (fault {stop_code}"
+                       f"{': ' + message if message else ''}): {what}; "
+                       f"nothing moves until a new command")))
+            return True
         out.append((Topic.NOTICE, Notice(
             kind="interrupted", source=SOURCE, code=status.safety_mode,
             reason=f"safety mode {status.safety_mode}"

@@ -18,7 +18,15 @@ Decisions the seed leaves open (documented in ``docs/speed-server.md``):
 - An emergency stop (SPSS silent for ``spss_timeout_s``, sensors silent, or a client fault) is
   latched: brakes full on, throttle zero, requests not acted upon; ``run``/``runwait``/
   ``shifting`` fall back to ``idle``. It clears when an SPSS arrives, the sensors are live,
-  the vehicle is stopped, and that SPSS is a valid request with fault code 0.
+  the vehicle is stopped, and that SPSS is a valid request with fault code 0; after a stop the
+  client did not ask for (watchdog, timeouts: not its fault code) only one for a state that
+  does not move (paused, idle, parked): a client still asking for ``run`` has not seen the
+  stop, so the old command never drives on by itself; a new ``run`` passes the 5 s runwait.
+- The vehicle's own command timeout (``VehicleStatus.command_timeout``: it braked because no
+  pedal command came, the server or its link stalled) is an emergency stop too (fault 1012).
+- A stall is not one long step: the controllers integrate at most ``MAX_CONTROL_STEP_S`` per
+  step, and after a gap the first throttle is no more than the one before it (the loop is
+  reset to it, so its integrator holds), rising from there at the loop's own slew rate.
 - After the automatic park (``pause_park_s`` in paused) a repeated request for paused does not
   restart the engine; the client must request another state first.
 """
@@ -81,6 +89,11 @@ PROBE_TARGET_FRACTION = 0.2
 """The brake probe starts only at launch, below this share of the target: before the ramp's
 20-80 % stretch whose acceleration the server guarantees (issue 3 acceptance, within 15 %), and
 never at cruise, where the speed must hold within 0.2 m/s (issue 4 acceptance)."""
+MAX_CONTROL_STEP_S = 0.02
+"""Longest time step the controllers integrate: two control periods (``period_s`` = 10 ms),
+room for one late step on a wall clock. A longer gap is a stall of this process (SIGSTOP, a
+scheduler hiccup, a lock-step ``stall`` event): integrating it as one step would wind the loops
+up and jump the output (issue: 100 % throttle after a 0.3 s stall)."""
 CLOCK_SKEW_MAX_S = 0.001
 """An SPSS send stamp may lead ``now_s`` by this much (float rounding of one shared clock,
 docs/multiprocess.md); further ahead, its clock is not ours and it is timed from receipt."""
@@ -181,6 +194,8 @@ class SpeedServer:
         # faults and e-stop
         self.client_fault = 0
         self.estop_reason = ""
+        self.estop_code = 0      # the fault code that latched the e-stop (SpeedState.estop_code)
+        self.estop_since_s = -math.inf   # when it was latched
         self.fault = 0
         self.fault_message = ""
         self.fault_since_s = -math.inf
@@ -198,6 +213,9 @@ class SpeedServer:
         # direction hold (issue 16): hill-start hold, rollback catch, rollback faults
         self.direction_hold = DirectionHold(params, cfg.direction_hold)
         self.hold_command: HoldCommand | None = None   # this period's, for its notices
+        self.vehicle_timeout = False     # the vehicle reports its own command-timeout brake
+        self.stalls = 0                  # gaps longer than MAX_CONTROL_STEP_S seen
+        self.resume_throttle_pct: float | None = None   # after a gap: the throttle before it
 
     # ------------------------------------------------------------------ node
 
@@ -205,6 +223,11 @@ class SpeedServer:
         out: list[tuple[str, Any]] = []
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
+        if dt_s > MAX_CONTROL_STEP_S + TIME_EPS_S:
+            # a stall: no harder than before it (the controllers integrate a bounded step)
+            self.stalls += 1
+            self.resume_throttle_pct = self.pedals.throttle_pct
+        control_dt_s = min(dt_s, MAX_CONTROL_STEP_S)
         if self.state_since_s is None:
             self.state_since_s = now_s
         if self.last_sensor_s is None:
@@ -216,6 +239,7 @@ class SpeedServer:
             now_s, gear.direction if gear is not None else 0))
         self._update_measurements(now_s, dt_s)
         self._monitor_actuators(now_s, out)
+        self._vehicle_timeout(now_s, out)
 
         client_fault_edge = False
         reply_faults: list[tuple[int, str]] = []
@@ -231,7 +255,8 @@ class SpeedServer:
             self._enter(now_s, new_state, event, out)
 
         self.hold_command = None
-        pedals, powertrain = self._actuators(dt_s)
+        pedals, powertrain = self._actuators(control_dt_s)
+        pedals = self._after_gap(pedals)
         self.pedals = pedals
         self._hold_notices(now_s, out)
         self._update_hint(now_s)
@@ -368,7 +393,7 @@ class SpeedServer:
                     code, field="fault", value=spss.fault, low=0, high=CLIENT_FAULT_MAX)
                     + "; stopping anyway")
                 self._raise_fault(now_s, int(code), message, out)
-                self._estop(f"client fault {spss.fault}", out)
+                self._estop(f"client fault {spss.fault}", out, spss.fault)
             return new
         self.client_fault = 0
         invalid = self._validate(spss)
@@ -384,10 +409,19 @@ class SpeedServer:
         self.last_rejection = None
         self._feed_watchdog(now_s, now_s if sent_s is None else sent_s)
         if self.latched:
-            if self.engine_cut or self.sensor_lost or not self.stopped:
-                return False   # not executed: the e-stop holds until the vehicle has stopped
-                               # (an actuator fault holds for good: the actuator needs a human)
-            self.estop_reason = ""
+            sent = now_s if sent_s is None else sent_s
+            if (self.engine_cut or self.sensor_lost or not self.stopped
+                    or (self.estop_code > CLIENT_FAULT_MAX
+                        and (spss.state == "run" or not now_s > self.estop_since_s + TIME_EPS_S
+                             or not sent > self.estop_since_s))):
+                return False   # not executed: the e-stop holds until the vehicle has stopped;
+                               # one the client did not ask for (the server's own code) until
+                               # it asks for a state that does not move (it has seen the stop:
+                               # the old command never drives on by itself), sent after the
+                               # stop began (a request queued during a stall of this server
+                               # was sent before the client could know); an actuator fault
+                               # holds for good: the actuator needs a human
+            self.estop_reason, self.estop_code = "", 0
         self._accept(spss)
         if self.fault and now_s - self.fault_since_s >= self.config.fault_hold_s - TIME_EPS_S:
             self.fault, self.fault_message = 0, ""
@@ -457,9 +491,13 @@ class SpeedServer:
         out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE, code=str(code),
                                          reason=message)))
 
-    def _estop(self, reason: str, out: list) -> None:
+    def _estop(self, reason: str, out: list, code: int) -> None:
+        if not self.estop_reason:
+            self.estop_code = code   # the first cause names the stop while it is latched
+            self.estop_since_s = self.last_now_s if self.last_now_s is not None else 0.0
         self.estop_reason = reason
-        out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, reason=reason)))
+        out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code=str(code),
+                                         reason=reason)))
 
     def _watchdog(self, now_s: float, out: list) -> bool:
         """SPSS and sensor timeouts; True on the period an e-stop starts."""
@@ -468,7 +506,7 @@ class SpeedServer:
         if self.spss_watchdog.check(now_s):
             self._raise_fault(now_s, FaultCode.SPSS_TIMEOUT, fault_message(
                 FaultCode.SPSS_TIMEOUT, timeout_s=cfg.spss_timeout_s), out)
-            self._estop(f"no SPSS for {cfg.spss_timeout_s:.3f} s", out)
+            self._estop(f"no SPSS for {cfg.spss_timeout_s:.3f} s", out, FaultCode.SPSS_TIMEOUT)
             edge = True
         assert self.last_sensor_s is not None
         silent = (now_s - self.last_sensor_s >= cfg.sensor_timeout_s - TIME_EPS_S
@@ -477,10 +515,35 @@ class SpeedServer:
         if silent and not self.sensor_lost:
             self._raise_fault(now_s, FaultCode.SENSOR_TIMEOUT, fault_message(
                 FaultCode.SENSOR_TIMEOUT, timeout_s=cfg.sensor_timeout_s), out)
-            self._estop(f"no vehicle status or speed for {cfg.sensor_timeout_s:.3f} s", out)
+            self._estop(f"no vehicle status or speed for {cfg.sensor_timeout_s:.3f} s", out,
+                        FaultCode.SENSOR_TIMEOUT)
             edge = True
         self.sensor_lost = silent
         return edge
+
+    def _vehicle_timeout(self, now_s: float, out: list) -> None:
+        """The vehicle braked on its own command timeout (this server or its link stalled): an
+        emergency stop, latched like the SPSS watchdog's, on the report's rising edge."""
+        status = self.status
+        timeout = bool(status is not None and status.command_timeout)
+        if timeout and not self.vehicle_timeout:
+            self._raise_fault(now_s, FaultCode.VEHICLE_TIMEOUT,
+                              fault_message(FaultCode.VEHICLE_TIMEOUT), out)
+            self._estop("the vehicle's command timeout braked", out, FaultCode.VEHICLE_TIMEOUT)
+        self.vehicle_timeout = timeout
+
+    def _after_gap(self, pedals: PedalCommand) -> PedalCommand:
+        """After a stall the throttle starts from no more than it was before the stall: the
+        throttle loop is reset to that output (its integrator holds, no wind-up) and rises
+        from there at its own slew rate."""
+        cap = self.resume_throttle_pct
+        if cap is None:
+            return pedals
+        self.resume_throttle_pct = None
+        if pedals.throttle_pct <= cap:
+            return pedals
+        self.controller.throttle_pid.reset(cap)
+        return msgspec.structs.replace(pedals, throttle_pct=cap)
 
     def _monitor_actuators(self, now_s: float, out: list) -> None:
         """Issue 16: last period's pedal commands against the reported positions and response
@@ -514,7 +577,7 @@ class SpeedServer:
             if finding.code in CUTS_ENGINE and not self.engine_cut:
                 self.engine_cut = True
                 self.goal, self.target_mps = "parked", 0.0
-                self._estop(finding.message, out)
+                self._estop(finding.message, out, int(finding.code))
 
     # ------------------------------------------------------------------ state machine
 
@@ -691,6 +754,7 @@ class SpeedServer:
             gear=status.gear if status is not None else self.gear_cmd,
             state=self.state, fault=fault, fault_message=fault_message,
             hint=self.hint, estop=self.latched,  # type: ignore[arg-type]
+            estop_code=self.estop_code if self.latched else 0,
             direction_hold=self.direction_hold.state,  # type: ignore[arg-type]
         )
 

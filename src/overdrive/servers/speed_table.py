@@ -239,6 +239,7 @@ class FaultCode(enum.IntEnum):
     ENGINE_STALLED = 1009
     SHIFT_FAILED = 1010
     SENSOR_TIMEOUT = 1011
+    VEHICLE_TIMEOUT = 1012
 
 
 CLIENT_FAULT_MAX: Final = 999
@@ -259,10 +260,27 @@ FAULT_MESSAGES: Final[dict[FaultCode, str]] = {
     FaultCode.ENGINE_STALLED: "engine stopped in {state}: restarting",
     FaultCode.SHIFT_FAILED: "gear {gear!r} not reached within {timeout_s:.1f} s",
     FaultCode.SENSOR_TIMEOUT: "no vehicle status or speed for {timeout_s:.3f} s: emergency stop",
+    FaultCode.VEHICLE_TIMEOUT: "the vehicle braked on its own command timeout: emergency stop",
 }
 """Message templates, formatted with the details of each occurrence."""
 
 CLIENT_FAULT_MESSAGE: Final = "client fault {code}: brakes on, throttle cut"
+
+ESTOP_CAUSES: Final[dict[int, str]] = {
+    FaultCode.SPSS_TIMEOUT: "watchdog",
+    FaultCode.SENSOR_TIMEOUT: "sensor_timeout",
+    FaultCode.VEHICLE_TIMEOUT: "command_timeout",
+}
+"""Names of the emergency stops the server raises on its own (the stack did not ask for them),
+as the move server reports them (``Notice(kind="interrupted", code=...)``); any other of the
+server's own codes (an actuator that does not follow) is ``actuator``."""
+
+
+def estop_cause(code: int) -> str:
+    """The name of the e-stop latched by fault ``code``; "" for a client's (asked for)."""
+    if code <= CLIENT_FAULT_MAX:
+        return ""
+    return ESTOP_CAUSES.get(code, "actuator")
 
 
 def fault_message(code: int, **details: object) -> str:

@@ -99,6 +99,8 @@ class VehicleSim:
         self.gate_interventions: dict[str, int] = {}
         self.command_watchdog = Watchdog(command_timeout_s) if command_timeout_s else None
         self.command_timeouts = 0
+        self.timeout_latched = False   # the command-timeout brake holds until a restart
+        self.restart_seen = False      # a runwait (horn) from the watched controller
         self.radar_seq = 0           # the radar's alive counter (a freeze repeats it)
         self.software_ready = True   # False: the XGV's control/ready-mode software pause (xgv.py)
         self.mode = safety_mode(self.devices)
@@ -124,6 +126,8 @@ class VehicleSim:
                 if msg.source in lim.powertrain_sources:
                     self.gear_cmd, self.engine_on = msg.gear, msg.engine_on
                     self.park_brake = msg.park_brake
+                    if msg.horn and msg.source in WATCHED_SOURCES:
+                        self.restart_seen = True
                 else:
                     self._reject(msg, out)
             elif topic == Topic.SAFETY:
@@ -214,16 +218,25 @@ class VehicleSim:
     def _command_watchdog(self, now_s: float, out: list) -> None:
         """A drive-by-wire vehicle must not hold the last throttle when its controller dies:
         once a periodic controller has sent pedal commands, silence longer than the timeout
-        means throttle 0 and full brake (one ``estop`` notice) until commands resume."""
+        means throttle 0 and full brake (one ``estop`` notice), reported in
+        ``VehicleStatus.command_timeout``. Commands resuming do not release it (a stalled
+        controller resumes with stale intent): only the stack's deliberate restart does, the
+        speed server's runwait (seed 001's 5 s wait before motion, horn sounding) once commands
+        flow again."""
         watchdog = self.command_watchdog
         if watchdog is None:
             return
         if watchdog.check(now_s):
             self.command_timeouts += 1
+            self.timeout_latched = True
             out.append((Topic.NOTICE, Notice(
                 kind="estop", source=self.name, code="command_timeout",
-                reason=f"no pedal command for {watchdog.timeout_s} s: full brake")))
-        if watchdog.lost:
+                reason=f"no pedal command for {watchdog.timeout_s} s: full brake until the "
+                       f"stack restarts through a runwait")))
+        if self.timeout_latched and not watchdog.lost and self.restart_seen:
+            self.timeout_latched = False
+        self.restart_seen = False
+        if self.timeout_latched:
             self.throttle_pct, self.brake_pct = 0.0, 100.0
 
     def _count(self, reason: str) -> None:
@@ -243,7 +256,7 @@ class VehicleSim:
             steer_pct=100.0 * road_wheel / p.max_steer_rad,
             throttle_pct=100.0 * plant.throttle, brake_pct=100.0 * plant.brake,
             safety_mode=self.mode, computer_speed=computer_speed,
-            computer_steering=computer_steers)
+            computer_steering=computer_steers, command_timeout=self.timeout_latched)
         yaw_rate = -plant.speed_mps * plant.curvature_1pm
         return [
             (Topic.VEHICLE_STATUS, status),
