@@ -241,3 +241,28 @@ def test_a_stall_of_an_unknown_node_is_a_scenario_error() -> None:
             "events": [stall(1.0, "vehicle", 0.3)]}
     with pytest.raises(ScenarioError, match="stall"):
         parse_scenario(data)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("stall_s", [0.15, 0.5])
+def test_a_stalled_driving_module_resumes_without_a_steering_jump(preset: str,
+                                                                  stall_s: float) -> None:
+    """The driving module stalls just as a curved replacement arrives. Was: it took the stall
+    as one step of its steering rate limit: the steering command jumped 11.2 % in one step
+    (0.69 % normally) while the watchdog's full braking left the least lateral grip. Now a
+    step after a stall moves the steering at most two periods' worth (dynamics.control
+    MAX_CONTROL_STEP_S; the rate grows a little as the vehicle slows)."""
+    speed_mps = reachable_mps(preset, 6.0)
+    curved = {"at_s": 5.0, "move": {"distance_m": 60.0, "maxspeed_mps": speed_mps,
+                                    "curvature_1pm": 0.04}}
+
+    def worst_step_pct(events: list[dict]) -> float:
+        result = run(preset, duration_s=12.0, events=events)
+        steer = [(float(r["t_s"]), float(r["steer_cmd_pct"])) for r in rows(result, 4.9)
+                 if r["steer_cmd_pct"] != ""]
+        return max(abs(b - a) for (_, a), (_, b) in itertools.pairwise(steer))
+
+    base = [move(0.5, 80.0, speed_mps), curved]
+    normal_pct = worst_step_pct(base)
+    stalled_pct = worst_step_pct([*base, stall(5.0, "driving", stall_s)])
+    assert stalled_pct <= 3.0 * normal_pct, (stalled_pct, normal_pct)

@@ -11,6 +11,13 @@ import math
 
 import msgspec
 
+MAX_CONTROL_STEP_S = 0.02
+"""Longest time step a controller or a rate limiter integrates: two control periods (10 ms),
+room for one late step on a wall clock. A longer gap is a stall of the process (SIGSTOP, a
+scheduler hiccup, a lock-step ``stall`` event): integrating it as one step would wind loops up
+and let rate limits jump (100 % throttle after a 0.3 s speed-server stall; an 11 % steering
+jump after a 0.15 s driving-module stall)."""
+
 
 def clamp(value: float, low: float, high: float) -> float:
     """Clamp to ``[low, high]``; NaN maps to ``low`` (the safe end for efforts and speeds)."""

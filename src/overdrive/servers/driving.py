@@ -21,7 +21,7 @@ from typing import Any
 
 import msgspec
 
-from overdrive.dynamics.control import rate_limit
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S, rate_limit
 from overdrive.dynamics.ellipse import (
     DEFAULT_ENVELOPE,
     BrakingCache,
@@ -752,7 +752,9 @@ class DrivingModule:
         rate_1pmps = self._steer_rate_1pmps
         if v * v > 0.0:
             rate_1pmps = min(rate_1pmps, cfg.lat_jerk_mps3 / (v * v))
-        k = limit_curvature(self.requested_1pm, self.curvature_1pm, lo, hi, rate_1pmps, dt_s)
+        # a stall is not one long step: the steering rate limit never jumps after one
+        k = limit_curvature(self.requested_1pm, self.curvature_1pm, lo, hi, rate_1pmps,
+                            min(dt_s, MAX_CONTROL_STEP_S))
         max_k = self._max_curvature_1pm
         self.curvature_1pm = min(max(k, -max_k), max_k)
 

@@ -39,7 +39,7 @@ from typing import Any
 
 import msgspec
 
-from overdrive.dynamics.control import first_order_lag
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S, first_order_lag
 from overdrive.dynamics.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -89,11 +89,6 @@ PROBE_TARGET_FRACTION = 0.2
 """The brake probe starts only at launch, below this share of the target: before the ramp's
 20-80 % stretch whose acceleration the server guarantees (issue 3 acceptance, within 15 %), and
 never at cruise, where the speed must hold within 0.2 m/s (issue 4 acceptance)."""
-MAX_CONTROL_STEP_S = 0.02
-"""Longest time step the controllers integrate: two control periods (``period_s`` = 10 ms),
-room for one late step on a wall clock. A longer gap is a stall of this process (SIGSTOP, a
-scheduler hiccup, a lock-step ``stall`` event): integrating it as one step would wind the loops
-up and jump the output (issue: 100 % throttle after a 0.3 s stall)."""
 CLOCK_SKEW_MAX_S = 0.001
 """An SPSS send stamp may lead ``now_s`` by this much (float rounding of one shared clock,
 docs/multiprocess.md); further ahead, its clock is not ours and it is timed from receipt."""
