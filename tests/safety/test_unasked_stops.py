@@ -266,3 +266,49 @@ def test_a_stalled_driving_module_resumes_without_a_steering_jump(preset: str,
     normal_pct = worst_step_pct(base)
     stalled_pct = worst_step_pct([*base, stall(5.0, "driving", stall_s)])
     assert stalled_pct <= 3.0 * normal_pct, (stalled_pct, normal_pct)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_after_an_engine_stall_nothing_moves_until_a_new_command(preset: str) -> None:
+    """The engine stalls mid-MOVE: the speed server restarts it (seed 001), which is no
+    e-stop. Was: the move server took it for a lost speed state and drove the old MOVE on
+    after the restart (at rest at 22.7 m, then on to 79.8 m), no event, no violation. Now the
+    command is discarded (``interrupted``, ``engine_stall``) and the vehicle stays where it
+    stopped until a new command."""
+    result = run(preset, duration_s=30.0, events=[move(0.5, 80.0, reachable_mps(preset, 6.0)),
+                                                  {"at_s": 6.0, "engine_stall": {}}])
+    assert [e["code"] for e in interruptions(result)] == ["engine_stall"]
+    rest_s = first_rest_s(result, 6.0)
+    assert travel_m(result, rest_s) < 0.1, travel_m(result, rest_s)
+    assert not result.summary["violations"], result.summary["violations"]
+
+
+@pytest.mark.parametrize(("source", "code", "flagged"), [
+    ("vehicle", "", True), ("speed", "1001", True), ("speed", "1009", False),
+    ("speed", "40", False)], ids=["vehicle-timeout", "speed-watchdog", "engine-stall-notice",
+                                  "client-fault"])
+def test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for(
+        source: str, code: str, flagged: bool) -> None:
+    """An ``estop`` notice from the vehicle, or from the speed server with its own code (above
+    the clients' 1..999), starts the rule: once at rest, motion without a new command is a
+    violation. A client's fault (it asked for the stop) does not, nor a fault notice that is no
+    e-stop."""
+    monitor = Monitor(PRESETS["escape-hybrid"], 1.0, 0.01)
+    monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1, distance_m=100.0,
+                                                    maxspeed_mps=5.0))
+    monitor.observe(Topic.MOVE_REPLY, MoveReply(command_id=1, kind="move", accepted=True))
+    x = 0.0
+    for tick in range(1, 300):
+        now = round(tick * 0.01, 6)
+        monitor.now_s = now
+        monitor.observe_delivered(Topic.SET_SPEED, SetSpeed(speed_mps=1, accel_mps2=1,
+                                                            gear="drive", state="run"))
+        if tick == 20:
+            kind = "fault" if code == "1009" else "estop"
+            monitor.observe(Topic.NOTICE, Notice(kind=kind, source=source, code=code))
+        speed = 0.0 if 0.5 <= now < 2.0 else 1.0
+        x += 0.01 * speed
+        monitor.observe(Topic.TRUTH, _truth(x, speed))
+        monitor.tick(now)
+    found = {d["rule"] for d in monitor.details()}
+    assert ("unintended_motion" in found) == flagged, monitor.details()

@@ -18,6 +18,7 @@ from overdrive.servers.speed_table import (
     Conditions,
     FaultCode,
     classify_event,
+    estop_cause,
     fault_message,
     mermaid_diagram,
     next_state,
@@ -213,3 +214,11 @@ def test_latched_estop_only_allows_parking_once_stopped():
 def test_idle_to_paused_on_request():
     assert classify_event("idle", cond(goal="paused", gear="high", gear_neutral=False)) == "pause"
     assert next_state("idle", "pause") == "paused"
+
+
+@pytest.mark.parametrize(("code", "cause"), [(0, ""), (40, ""), (999, ""), (1001, "watchdog"),
+                                             (1009, "engine_stall"), (1133, "actuator")])
+def test_an_emergency_stop_is_named_by_who_caused_it(code: int, cause: str) -> None:
+    """A client's fault (1..999) is a stop it asked for: no name; the server's own codes name
+    the unasked stop the move server reports (``interrupted``)."""
+    assert estop_cause(code) == cause

@@ -90,7 +90,7 @@ from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, Pla
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
-from overdrive.servers.speed_table import estop_cause
+from overdrive.servers.speed_table import FaultCode, estop_cause
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
@@ -365,9 +365,14 @@ class MoveServer:
             self._finite_sensor(False, "wheel_speed: not finite", out)
 
     def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
+        last_fault = self.speed_state.fault if self.speed_state is not None else 0
         self.speed_state = msg
         if msg.estop and estop_cause(msg.estop_code):
             self.speed_stop_code = msg.estop_code   # any report of the step counts (issue 38)
+        elif msg.fault == FaultCode.ENGINE_STALLED and last_fault != msg.fault:
+            # the engine stopped: the server restarts it (seed 001), but the vehicle stopped
+            # unasked, so the command in force is discarded like an e-stop's
+            self.speed_stop_code = msg.fault
         if msg.direction_hold != "failed":
             self.hold_clear_since_accept = True
 

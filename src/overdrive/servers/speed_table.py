@@ -270,10 +270,13 @@ ESTOP_CAUSES: Final[dict[int, str]] = {
     FaultCode.SPSS_TIMEOUT: "watchdog",
     FaultCode.SENSOR_TIMEOUT: "sensor_timeout",
     FaultCode.VEHICLE_TIMEOUT: "command_timeout",
+    FaultCode.ENGINE_STALLED: "engine_stall",
 }
 """Names of the emergency stops the server raises on its own (the stack did not ask for them),
 as the move server reports them (``Notice(kind="interrupted", code=...)``); any other of the
-server's own codes (an actuator that does not follow) is ``actuator``."""
+server's own codes (an actuator that does not follow) is ``actuator``. An engine stall is no
+e-stop (the server restarts the engine, seed 001) but it stops the vehicle unasked all the
+same: the move server interrupts on it too."""
 
 
 def estop_cause(code: int) -> str:
