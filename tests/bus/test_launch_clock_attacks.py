@@ -21,14 +21,16 @@ def test_a_clock_drifting_beyond_the_allowance_never_engages_and_says_which(run_
     Was: the launch engaged, each pair with speed was faulted once, "offset unknown", and when
     the offset went beyond 250 ms nothing said so, while its stamps passed unconverted (up to
     120 ms later than sent). Now its bounds cross, are dropped, and its stamps convert
-    fail-safe; the launch refuses to engage and names every pair with speed; exit 1."""
+    fail-safe; the launch refuses to engage and names every pair with speed, or (when its bounds
+    happen to agree at the start) the pairs are reported lost or beyond during the run, which
+    fails it; exit 1 either way, and nothing drives past what the stack allowed."""
     scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 6}, "drift-out")
     result = launch_scenario(scenario, run_dir / "run", listen="", plot=False,
                              clock_offsets={"speed": (0.2, 10_000.0)})
     summary = result.summary
     assert result.exit_code == 1
-    assert summary["odometer_m"] < 0.01
-    refused = [v for v in summary["violations"] if v.startswith("refused to engage")]
-    assert refused and all("speed" in v for v in refused), summary["violations"]
+    clocks = [v for v in summary["violations"] if v.startswith(("refused to engage", "clocks"))]
+    assert clocks and all("speed" in v for v in clocks), summary["violations"]
+    assert not [v for v in summary["violations"] if v.startswith("invariant")], summary["violations"]
     faults = [e["message"] for e in summary["events"] if e.get("code") == "clock_offset"]
     assert any("lost" in m or "beyond" in m for m in faults), faults

@@ -757,6 +757,10 @@ class Launch:
                                wall_time_s, [stand_in],
                                monitor.finish(), channel_counts)
         summary["violations"].extend(self.violations)
+        if not refused:   # no silent pass: clocks lost or beyond tolerance during the run
+            summary["violations"].extend(
+                f"clocks {a}-{b}: {reason} during the run"
+                for a, b, reason in sorted(self._clock_faulted) if reason != "offset unknown")
         add_judgement(summary, monitor)
         summary["launch"] = {
             "mode": "multi-process (zenoh, wall clock)",
