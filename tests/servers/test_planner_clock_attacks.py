@@ -12,16 +12,12 @@ from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.clock_offset import ClockOffset
 from overdrive.servers.move import MoveServer, MoveServerConfig
 from overdrive.servers.move_clock import PlannerClock
+from tests.conftest import PRESET_NAMES, reachable_mps
 from tests.servers.move_harness import move
 from tests.servers.move_harness import run_events as run
 from tests.servers.test_move_server import last, sensors
 
-PRESET_NAMES = ("escape-hybrid", "ranger-6x6")
 PAST_TOLERANCE_M = 0.05
-
-
-def _speed(preset: str, wanted_mps: float) -> float:
-    return min(wanted_mps, 0.9 * PRESETS[preset].gear(PRESETS[preset].drive_gear).max_speed_mps)
 
 
 def _at(result, t_s: float) -> dict:
@@ -47,7 +43,7 @@ def test_a_planner_clock_step_forward_never_places_a_late_command_later_than_iss
     was kept, the command placed 0.18 s after it was issued, the vehicle ran 1.1-1.3 m past its
     end. (A step between the echoed status and the stamp cannot be told from a late command:
     docs/move-server.md.)"""
-    speed_mps = _speed(preset, 8.0)
+    speed_mps = reachable_mps(preset, 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": 0.0}},
                   move(0.5, 200.0, speed_mps), move(5.0, 200.0, speed_mps),
                   {"at_s": 8.95, "delay": {"channel": "move", "for_s": 1.0, "delay_s": 0.2}},
@@ -64,7 +60,7 @@ def test_a_planner_drifting_faster_than_allowed_never_has_a_late_command_placed_
     """10000 ppm (20 times the allowance), commands 8.5 s apart, the replacement 80 ms late on
     the move channel. Was: the lower bound from 8.5 s before (widened by 4 ms, the offset had
     moved 85 ms) placed it ~60 ms late: 0.38-0.45 m past its end."""
-    speed_mps = _speed("escape-hybrid", 8.0)
+    speed_mps = reachable_mps("escape-hybrid", 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": 0.0, "drift_ppm": 10000.0}},
                   move(0.5, 200.0, speed_mps),
                   {"at_s": 8.95, "delay": {"channel": "move", "for_s": 0.2, "delay_s": 0.08}},
@@ -82,7 +78,7 @@ def test_a_restarted_planner_on_another_clock_never_has_its_command_placed_later
     change: the command placed ~0.19 s late, 1.27 m past its end. (On ``same`` the setting
     says one clock: a restarted planner's first command, with no status to echo yet, is taken
     at its stamp, docs/move-server.md.)"""
-    speed_mps = _speed("escape-hybrid", 8.0)
+    speed_mps = reachable_mps("escape-hybrid", 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": -0.1}},
                   move(0.5, 200.0, speed_mps), move(8.5, 200.0, speed_mps),
                   {"at_s": 8.95, "delay": {"channel": "move", "for_s": 0.1, "delay_s": 0.2}},
@@ -119,7 +115,7 @@ def test_on_the_same_machine_a_stamp_the_bounds_show_may_be_early_is_not_taken_a
     """``planner_machine: same``, the planner 30 ms ahead, the move channel 30 ms late: the
     bounds [-0.04, 0] hold 0 within 20 ms, so the stamp is taken as it is, 30 ms after the true
     issue. Was: 0.07 m past the end (0.37 m further than on ``separate``)."""
-    speed_mps = _speed("escape-hybrid", 8.0)
+    speed_mps = reachable_mps("escape-hybrid", 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": 0.03}},
                   {"at_s": 0.0, "delay": {"channel": "move", "for_s": 30.0, "delay_s": 0.03}},
                   move(0.5, 200.0, speed_mps), move(9.0, 12.0, speed_mps)],
@@ -138,7 +134,7 @@ def test_a_late_command_of_a_replaced_planner_on_a_clock_ahead_never_overrides_i
     (session 2, clock 0) and sends MOVE 12 m, which arrives first. Was: session 1's stamp (on
     its clock) is later than session 2's, so it was taken as a newer session and replaced the
     12 m: 105-107 m past the current planner's end."""
-    speed_mps = _speed(preset, 8.0)
+    speed_mps = reachable_mps(preset, 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": 0.2}},
                   {"at_s": 0.995, "delay": {"channel": "move", "for_s": 0.01, "delay_s": 0.03}},
                   move(1.0, 200.0, speed_mps),
@@ -156,7 +152,7 @@ def test_a_restarted_planner_on_a_clock_behind_is_never_locked_out_silently(mach
     command. Was: its first command is judged an earlier run's (stamp before the old session's
     newest), its session then 'not current' forever: every command refused as stale, the
     vehicle never moves again, no fault, exit 0."""
-    speed_mps = _speed("escape-hybrid", 5.0)
+    speed_mps = reachable_mps("escape-hybrid", 5.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": 0.2}},
                   move(0.5, 5.0, speed_mps),
                   {"at_s": 0.55, "planner_restart": {}},
@@ -246,7 +242,7 @@ def test_on_the_same_machine_an_echoing_planner_ahead_with_a_late_command_ends_s
     """``same``, the planner 35-45 ms ahead (beyond the 20 ms step phase) and echoing, the move
     channel 25-30 ms late. Was: the bounds held 0 within 20 ms so the raw stamp was taken,
     placed late: 0.069 m past the end. Now each command is placed from its own echo."""
-    speed_mps = _speed("escape-hybrid", 8.0)
+    speed_mps = reachable_mps("escape-hybrid", 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": ahead_s}},
                   {"at_s": 0.0, "delay": {"channel": "move", "for_s": 30.0, "delay_s": delay_s}},
                   move(0.5, 120.0, speed_mps), move(9.0, 12.0, speed_mps)],

@@ -7,21 +7,16 @@ from __future__ import annotations
 
 import pytest
 
-from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.clock_offset import MAX_CLOCK_OFFSET_S
+from tests.conftest import PRESET_NAMES, reachable_mps
 from tests.servers.move_harness import move
 from tests.servers.move_harness import run_events as run
 
-PRESET_NAMES = ("escape-hybrid", "ranger-6x6")
 DONE_TOLERANCE_M = 0.5        # MoveServerConfig.done_tolerance_m
 
 
 def _at(result, t_s: float) -> dict:
     return min(result.trace, key=lambda r: abs(float(r["t_s"]) - t_s))
-
-
-def _speed(preset: str, wanted_mps: float) -> float:
-    return min(wanted_mps, 0.9 * PRESETS[preset].gear(PRESETS[preset].drive_gear).max_speed_mps)
 
 
 def _faults(result, code: str) -> list[dict]:
@@ -37,7 +32,7 @@ def test_within_tolerance_a_replacement_at_speed_ends_where_the_planner_asked(
         preset: str, offset_s: float, drift_ppm: float, machine: str) -> None:
     """Was: a planner 30 ms ahead had every command refused; the vehicle stopped after 0.67 m
     and never moved again."""
-    speed_mps = _speed(preset, 8.0)
+    speed_mps = reachable_mps(preset, 8.0)
     replace_s, distance_m = 9.0, 12.0
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": offset_s, "drift_ppm": drift_ppm}},
                   move(0.5, 120.0, speed_mps), move(replace_s, distance_m, speed_mps)],
@@ -61,7 +56,7 @@ def test_within_tolerance_a_replacement_at_speed_ends_where_the_planner_asked(
 def test_beyond_tolerance_nothing_moves_and_a_fault_says_why(preset: str, offset_s: float,
                                                              machine: str) -> None:
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": offset_s}},
-                  move(0.5, 30.0, _speed(preset, 8.0))], duration_s=4.0, vehicle=preset,
+                  move(0.5, 30.0, reachable_mps(preset, 8.0))], duration_s=4.0, vehicle=preset,
                  planner_machine=machine)
     assert result.exit_code == 1
     assert any("refused everything" in v for v in result.summary["violations"])
@@ -75,7 +70,7 @@ def test_a_clock_drifting_out_of_tolerance_stops_the_vehicle_with_the_reason(pre
     """0.2 s ahead and gaining 10 ms a second: beyond 0.25 s after 5 s. The planner's commands
     from then on are refused; the vehicle stops (its newest intent cannot be placed) and the
     fault says why."""
-    speed_mps = _speed(preset, 6.0)
+    speed_mps = reachable_mps(preset, 6.0)
     events = [{"at_s": 0.0, "planner_clock": {"offset_s": 0.2, "drift_ppm": 10_000.0}},
               move(0.5, 200.0, speed_mps)]
     events += [move(t, 200.0, speed_mps) for t in (2.0, 4.0, 6.0, 8.0)]
@@ -93,7 +88,7 @@ def test_a_clock_drifting_out_of_tolerance_stops_the_vehicle_with_the_reason(pre
 def test_a_planner_clock_step_mid_run_is_re_measured(preset: str, step_s: float) -> None:
     """The planner's clock steps (an NTP step) while it drives: its next command is measured
     against the new offset; a replacement after the step still ends where asked."""
-    speed_mps = _speed(preset, 6.0)
+    speed_mps = reachable_mps(preset, 6.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": 0.0}}, move(0.5, 100.0, speed_mps),
                   {"at_s": 6.0, "planner_clock": {"offset_s": step_s}},
                   move(8.0, 10.0, speed_mps)], duration_s=18.0, vehicle=preset,
@@ -133,7 +128,7 @@ def test_on_another_machine_the_vehicle_stays_parked_until_the_offset_is_known(p
 def test_a_stop_from_a_planner_with_any_clock_acts_at_once(preset: str, offset_s: float) -> None:
     """A STOP needs no time: obeyed within a period whatever the planner's clock says, also
     beyond tolerance (its MOVE was never placed, but a STOP is always obeyed)."""
-    speed_mps = _speed(preset, 8.0)
+    speed_mps = reachable_mps(preset, 8.0)
     result = run([{"at_s": 0.0, "planner_clock": {"offset_s": offset_s}},
                   move(0.5, 120.0, speed_mps),
                   {"at_s": 5.0, "planner_clock": {"offset_s": 3.0 * offset_s}},
