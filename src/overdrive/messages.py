@@ -61,6 +61,7 @@ class Topic:
     RADAR = "sensors/radar"                  # vehicle -> stack (Radar)
     TRUTH = "sim/truth"                      # simulator ground truth, never read by the stack
     NOTICE = "events"                        # any node -> recorder (Notice)
+    TICK = "process/tick"                    # every process of a launch -> launcher (NodeTick)
 
 
 # --------------------------------------------------------------------------- move server (seed 004)
@@ -356,8 +357,23 @@ class Notice(Message, frozen=True):
     reason: str = ""
 
 
+# --------------------------------------------------------------------------- supervision
+
+NODE_TICK_PERIOD_S = 0.1
+"""Every process of a multi-process run publishes a ``NodeTick`` this often (docs/multiprocess.md,
+"Supervision"): ten a second, so a hang bound of half a second is five ticks."""
+
+
+class NodeTick(Message, frozen=True):
+    """A process's liveness tick, sent from its stepping loop every ``NODE_TICK_PERIOD_S``: a
+    process whose ticks stop is hung (or its link is); ``seq`` tells the two apart afterwards."""
+
+    process: str                   # the sender's bus name (vehicle, speed, driving, move, gate)
+    seq: int                       # ticks this process has sent before this one (0 after a restart)
+
+
 ALL_MESSAGES: tuple[type[Message], ...] = (
     MoveCommand, MoveReply, MoveStatus, ClockEstimate, SteeringRequest, MaxSpeed, AdvanceAuthorization,
     DriveMode, DrivingStatus, SetSpeed, SpeedState, PedalCommand, SteerCommand, PowertrainCommand,
-    SafetyDevices, VehicleStatus, WheelSpeed, GpsIns, Imu, Radar, Truth, Notice,
+    SafetyDevices, VehicleStatus, WheelSpeed, GpsIns, Imu, Radar, Truth, Notice, NodeTick,
 )

@@ -17,7 +17,7 @@ COMMAND, STATE = "command", "state"
 STATE_TOPICS = frozenset({
     Topic.MOVE_STATUS, Topic.DRIVING_STATUS, Topic.SPEED_STATE, Topic.VEHICLE_STATUS,
     Topic.WHEEL_SPEED, Topic.GPS_INS, Topic.IMU, Topic.RADAR, Topic.TRUTH, "launch/clock",
-    CLOCK_REPORT_TOPIC,
+    CLOCK_REPORT_TOPIC, Topic.TICK,
 })
 """Periodic state: each sample supersedes the last, so losing a stale one under load is harmless."""
 

@@ -9,7 +9,8 @@ sender ``tool``; anything else (a command topic, a claimed node name, a malforme
 outside the run) is dropped and counted by reason. Mesh traffic is forwarded, byte for byte,
 to the tool side for the keys a tool subscribes to (and only then: the gate subscribes on the
 mesh to a topic only while a tool listens to it, so an idle gate costs the run nothing). The gate
-runs at normal priority: it is not part of the control loop.
+runs at normal priority: it is not part of the control loop. Like every process of a launch it
+publishes a ``NodeTick`` every ``NODE_TICK_PERIOD_S`` from its loop, so the launcher sees it hang.
 
 A tool can never hold the run back: the mesh-side relays queue samples in Zenoh ring channels
 (``RELAY_CAPACITY``; no Python on Zenoh's threads) and the gate's loop forwards them. When a
@@ -35,6 +36,7 @@ from overdrive.bus.access import GATE_USER, LOG_FILTER, TOOL_TOPICS, RunAccess
 from overdrive.bus.delivery import COMMAND, delivery
 from overdrive.bus.wire import Registry, WireError
 from overdrive.bus.zenoh_bus import KEY_ROOT, session_config
+from overdrive.messages import NODE_TICK_PERIOD_S, NodeTick, Topic
 
 TOOL_SENDER = "tool"       # the sender a tool's admitted messages carry on the mesh
 INTEREST_POLL_S = 0.2      # how often the gate looks for tool subscribers (echo's first wait)
@@ -134,6 +136,9 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
         publisher(tools, outward, prefix + topic)
     subs = [tools.declare_subscriber("**", from_tool, allowed_origin=zenoh.Locality.REMOTE)]
     relays: dict[str, Any] = {}                    # mesh subscriptions, only while a tool listens
+    ticks = mesh.declare_publisher(prefix + Topic.TICK, express=True,
+                                   congestion_control=zenoh.CongestionControl.DROP)
+    seq = 0
     if ready is not None:
         ready.set()
     if ready_path is not None:
@@ -141,7 +146,16 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     started = time.monotonic()
     next_interest_s = started
     try:
-        while not stop.wait(RELAY_POLL_S if relays else INTEREST_POLL_S):   # idle: 5 wakes/s
+        next_tick_s = started
+        while not stop.wait(min(RELAY_POLL_S if relays else INTEREST_POLL_S,   # idle: 10 wakes/s
+                                max(0.0, next_tick_s - time.monotonic()))):
+            now_s = time.monotonic()
+            if now_s >= next_tick_s:          # liveness: the launcher reports a silent gate
+                ticks.put(registry.encode(NodeTick(process=GATE_USER, seq=seq), GATE_USER, now_s))
+                seq += 1
+                next_tick_s += NODE_TICK_PERIOD_S
+                if next_tick_s <= now_s:      # behind (not run): re-anchor, no burst
+                    next_tick_s = now_s + NODE_TICK_PERIOD_S
             for key, relay in relays.items():
                 pub = outward[key]
                 while (sample := relay.try_recv()) is not None:
@@ -159,6 +173,7 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
                     relays.pop(key).undeclare()
     finally:
         subs.extend(relays.values())
+        ticks.undeclare()
         report = {"node": "gate", "uptime_s": round(time.monotonic() - started, 3),
                   **policy.report()}
         if report_path is not None:

@@ -34,6 +34,7 @@ from overdrive.messages import (
     MoveCommand,
     MoveReply,
     MoveStatus,
+    NodeTick,
     Notice,
     PedalCommand,
     PowertrainCommand,
@@ -60,6 +61,7 @@ TOPIC_TYPES: dict[str, type] = {
     Topic.POWERTRAIN: PowertrainCommand, Topic.SAFETY: SafetyDevices,
     Topic.VEHICLE_STATUS: VehicleStatus, Topic.WHEEL_SPEED: WheelSpeed, Topic.GPS_INS: GpsIns,
     Topic.IMU: Imu, Topic.RADAR: Radar, Topic.TRUTH: Truth, Topic.NOTICE: Notice,
+    Topic.TICK: NodeTick,
 }
 """The one message type each stack topic carries (messages.py's topic comments)."""
 

@@ -135,12 +135,33 @@ def _parse_clock(text: str) -> tuple[float, float]:
 
 
 def _parse_action(text: str, what: str) -> tuple[float, str, str]:
-    name, _, at = text.partition("@")
+    """``NODE@AT_S`` -> ``(at_s, what, node)``."""
+    name, sep, at = text.partition("@")
     try:
         at_s = float(at)
     except ValueError:
-        raise click.BadParameter(f"{text!r}: expected NODE@SECONDS, e.g. move@12") from None
+        at_s = math.nan
+    if not sep or not name or not math.isfinite(at_s) or at_s < 0.0:
+        raise click.BadParameter(f"{text!r}: expected NODE@AT_S with AT_S a time in seconds "
+                                 f">= 0, e.g. move@12")
     return at_s, what, name
+
+
+def _parse_stall(text: str) -> list[tuple[float, str, str]]:
+    """``NODE@AT_S[:FOR_S]`` -> a SIGSTOP and, after FOR_S, a SIGCONT (none: hung to the end)."""
+    head, _, for_text = text.partition(":")
+    at_s, _, name = _parse_action(head, "stop")
+    for_s = math.inf
+    if for_text:
+        try:
+            for_s = float(for_text)
+        except ValueError:
+            for_s = math.nan
+        if not (math.isfinite(for_s) and for_s > 0.0):
+            raise click.BadParameter(f"{text!r}: FOR_S must be a positive number of seconds, "
+                                     f"e.g. move@12:0.5")
+    stops: list[tuple[float, str, str]] = [(at_s, "stop", name)]
+    return stops if math.isinf(for_s) else [*stops, (at_s + for_s, "cont", name)]
 
 
 @click.command()
@@ -150,8 +171,15 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
 @click.option("--listen", default=DEFAULT_ENDPOINT, show_default=True,
               help="The launcher's endpoint, where pub/echo connect.")
 @click.option("--restart", is_flag=True, help="Restart a node process that dies.")
-@click.option("--kill", "kills", multiple=True, metavar="NODE@T_S",
-              help="Fault injection: SIGKILL a node's process at scenario time T_S (repeat).")
+@click.option("--kill", "kills", multiple=True, metavar="NODE@AT_S",
+              help="Fault injection: SIGKILL a process (a node or `gate`) at scenario time AT_S "
+                   "(repeat).")
+@click.option("--stall", "stalls", multiple=True, metavar="NODE@AT_S[:FOR_S]",
+              help="Fault injection: SIGSTOP a process at AT_S, SIGCONT it FOR_S later (without "
+                   "FOR_S it stays hung to the end of the run) (repeat).")
+@click.option("--restart-node", "restart_nodes", multiple=True, metavar="NODE@AT_S",
+              help="Fault injection: restart a process at AT_S (SIGTERM, then start it again) "
+                   "(repeat).")
 @click.option("--credentials", type=click.Path(dir_okay=False, exists=True),
               help="user:password lines; each process authenticates as its node name.")
 @click.option("--no-plot", is_flag=True, help="Skip plot.png.")
@@ -167,7 +195,7 @@ def _parse_action(text: str, what: str) -> tuple[float, str, str]:
                    "DRIFT_PPM (repeat; docs/multiprocess.md, \"Clocks across machines\").")
 @_zenoh_options
 def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kills: tuple[str, ...],
-           credentials: str | None, no_plot: bool, rt_priority: bool, quiet: bool, open_bus: bool,
+           stalls: tuple[str, ...], restart_nodes: tuple[str, ...], credentials: str | None, no_plot: bool, rt_priority: bool, quiet: bool, open_bus: bool,
            clock_offsets: tuple[str, ...], zenoh_config: str | None, user: str | None,
            allow_remote: bool, vehicle: str) -> None:
     """Run SCENARIO with every server in its own process, in wall-clock time."""
@@ -178,7 +206,9 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
 
     del user  # each process uses its node name
     loaded = _load(scenario)
-    actions = [_parse_action(k, "kill") for k in kills]
+    actions = [*(_parse_action(k, "kill") for k in kills),
+               *(a for text in stalls for a in _parse_stall(text)),
+               *(_parse_action(r, "restart") for r in restart_nodes)]
     offsets: dict[str, tuple[float, float]] = {}
     for text in clock_offsets:
         name, sep, value = text.partition("=")

@@ -57,7 +57,7 @@ from overdrive.bus.access import (
 )
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
-from overdrive.messages import Notice, Topic
+from overdrive.messages import NodeTick, Notice, Topic
 from overdrive.observe.judge import DELIVERED_TOPICS
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import open_trace, write_summary
@@ -74,6 +74,7 @@ from overdrive.runtime.scheduling import (
     raise_priority,
     scheduling,
 )
+from overdrive.runtime.supervision import HANG_BOUND_S, Hung, Liveness, Resumed, TickNode
 from overdrive.runtime.wall import ClockReporter, WallRuntime, skewed_clock
 from overdrive.scenario.player import ScenarioPlayer, channel_faults, world_from_spec
 from overdrive.scenario.schema import Scenario, ScenarioError, parse_scenario
@@ -245,7 +246,7 @@ def run_node(cli_name: str, scenario: Scenario, *, listen: Sequence[str] = (),
     faults = channel_faults(scenario)
     bus.channel = faults
     # the plant integrates at its fixed period; servers step at once on a command (issue 20)
-    runtime = WallRuntime([node, ClockReporter(bus)], bus, clock=clock,
+    runtime = WallRuntime([node, ClockReporter(bus), TickNode(node.name)], bus, clock=clock,
                           event_driven=not isinstance(node, VehicleSim), spin_s=NODE_SPIN_S)
     runtime_box.append(runtime)
     bus.announce(node.name)
@@ -325,7 +326,22 @@ class LaunchResult:
 
 
 Action = tuple[float, str, str]
-"""``(at_s, "kill" | "term" | "restart", node)``: supervisor actions at scenario times."""
+"""``(at_s, what, process)``: supervisor actions at scenario times (``ACTIONS``), on a node's CLI
+name or ``gate``. ``stall_actions`` makes the pair of a stall."""
+ACTIONS = {"kill": signal.SIGKILL, "term": signal.SIGTERM, "stop": signal.SIGSTOP,
+           "cont": signal.SIGCONT, "restart": None}
+"""Fault injection (docs/multiprocess.md, "Injecting faults"): a signal to the process group, or a
+restart (SIGTERM, wait, start again). ``stop`` without a ``cont`` is a hang to the run's end."""
+GATE = "gate"                    # the tool gate as an action target and in supervision
+RESTART_GRACE_S = READY_TIMEOUT_S
+"""A (re)started process's first liveness tick is due within this (Python, imports, session and
+the clock: seconds on a loaded host); it is judged by ``HANG_BOUND_S`` from then on."""
+
+
+def stall_actions(process: str, at_s: float, for_s: float = math.inf) -> list[Action]:
+    """SIGSTOP ``process`` at ``at_s`` and SIGCONT it ``for_s`` later (never: a hang)."""
+    stop: list[Action] = [(at_s, "stop", process)]
+    return stop if math.isinf(for_s) else [*stop, (at_s + for_s, "cont", process)]
 
 
 class Launch:
@@ -357,12 +373,21 @@ class Launch:
         self.secure = secure and base_file is None and credentials is None
         """Generated per-run credentials and rules (the default; issue 18), unless the caller
         brings its own Zenoh config or credentials, or asks for an open bus."""
-        for _at, what, _name in self.actions:
-            if what not in ("kill", "term", "restart"):
-                raise ValueError(f"unknown action {what!r}")
+        for at_s, what, _name in self.actions:
+            if what not in ACTIONS:
+                raise ValueError(f"unknown action {what!r}; one of {', '.join(ACTIONS)}")
+            if not (math.isfinite(at_s) and 0.0 <= at_s <= scenario.spec.duration_s):
+                raise ValueError(f"{what} at {at_s} s: not a time in the run "
+                                 f"(0 to {scenario.spec.duration_s:g} s)")
         check_launchable(scenario)
         self.names = scenario_node_names(scenario)
-        for _at, _what, name in [*self.actions, *((0, "", n) for n in self.clock_offsets)]:
+        has_gate = self.secure and bool(self.listen)
+        targets = [*self.names, GATE] if has_gate else list(self.names)
+        for _at, _what, name in self.actions:
+            if name not in targets:
+                raise ScenarioError(scenario.source, "node",
+                                    f"{name!r} is not a process of this run ({', '.join(targets)})")
+        for name in self.clock_offsets:
             if name not in self.names:
                 raise ScenarioError(scenario.source, "node",
                                     f"{name!r} is not a process of this run ({', '.join(self.names)})")
@@ -380,6 +405,12 @@ class Launch:
         self.access: RunAccess | None = None
         self.gate_listen = f"tcp/127.0.0.1:{ports[-1]}" if self.secure and self.listen else ""
         self.gate: subprocess.Popen | None = None
+        self._gate_connect: list[str] = []
+        self._gate_exits: list[dict[str, Any]] = []
+        self._gate_restart_at_s: float | None = None
+        self._gate_expected_exit = False
+        self.liveness: Liveness | None = None
+        """Who is hung (``runtime.supervision``): made when the run starts playing."""
         self._niceness: int | None = None    # the launcher's own before start(), to restore
         self._nice_tid = 0                   # ... on the thread that called start()
         if self.secure:
@@ -465,6 +496,7 @@ class Launch:
     def _spawn_gate(self, connect: list[str]) -> None:
         """Start the tool gate: the run's public endpoint for pub/echo (``bus.tool_gate``)."""
         assert self.access is not None
+        self._gate_connect = list(connect)
         self._gate_ready.unlink(missing_ok=True)
         cmd = [self.python, "-m", "overdrive.cli.bus", "gate", "--public", self.listen,
                "--listen", self.gate_listen, "--vehicle", self.vehicle,
@@ -522,29 +554,110 @@ class Launch:
             self._stop_proc(proc)
         self._spawn(proc)
         self._event("process_restart", node=name, pid=proc.popen.pid if proc.popen else None)
+        self._expect(name)
 
-    def _supervise(self, now_s: float) -> None:
+    def _expect(self, name: str) -> None:
+        """``name`` was (re)started now: supervised again from its first tick."""
+        if self.liveness is not None:
+            self.liveness.expect(NODE_CLASSES.get(name, name), self.now_s, RESTART_GRACE_S)
+
+    def _act(self, now_s: float) -> None:
+        """Run the fault-injection actions that are due (``ACTIONS``)."""
         self.now_s = now_s
-        self._watch_clocks(now_s)
         while self.actions and self.actions[0][0] <= now_s + 1e-9:
             _at, what, name = self.actions.pop(0)
             if what == "restart":
-                self.restart_node(name)
+                self.restart_gate() if name == GATE else self.restart_node(name)
+            elif name == GATE:
+                self.signal_gate(ACTIONS[what])
             else:
-                self.signal_node(name, signal.SIGKILL if what == "kill" else signal.SIGTERM)
+                self.signal_node(name, ACTIONS[what])
+
+    def signal_gate(self, sig: int) -> None:
+        """Send ``sig`` to the tool gate's process group (fault injection)."""
+        if self.gate is not None and self.gate.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.gate.pid, sig)
+            self._event("process_signal", node=GATE, signal=signal.Signals(sig).name.lower())
+
+    def restart_gate(self) -> None:
+        if self.gate is not None and self.gate.poll() is None:
+            self._gate_expected_exit = True
+            self._stop_gate()
+        self._respawn_gate()
+
+    def _respawn_gate(self) -> None:
+        self._spawn_gate(self._gate_connect)
+        self._gate_restart_at_s, self._gate_expected_exit = None, False
+        self._event("process_restart", node=GATE, pid=self.gate.pid if self.gate else None)
+        self._expect(GATE)
+
+    def _died(self, name: str, code: int, now_s: float, consequence: str = "") -> None:
+        """Report a process's death: an event, a fault notice, a violation."""
+        how = f"signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
+        self._event("process_exit", node=name, code=code, reason=how)
+        self._fault("process_exit", f"{name} died ({how}) at t={now_s:.2f} s{consequence}")
+        self.violations.append(f"process: {name} died ({how}) at t={now_s:.2f} s")
+        if self.liveness is not None:
+            self.liveness.down(NODE_CLASSES.get(name, name))
+
+    def _fault(self, code: str, reason: str) -> None:
+        if self.bus is not None:
+            self.bus.publish(Topic.NOTICE, Notice(kind="fault", source=LAUNCHER_USER, code=code,
+                                                  reason=reason))
+
+    def _supervise(self, now_s: float) -> None:
+        self._act(now_s)
+        self._watch_clocks(now_s)
         for name, proc in self.procs.items():
             popen = proc.popen
             if popen is not None and proc.restart_at_s is None:
                 code = popen.poll()
                 if code is not None:
-                    how = f"signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}"
                     proc.exits.append({"t_s": round(now_s, 4), "code": code})
-                    self._event("process_exit", node=name, code=code, reason=how)
-                    self.violations.append(f"process: {name} died ({how}) at t={now_s:.2f} s")
+                    self._died(name, code, now_s)
                     proc.restart_at_s = now_s + self.restart_delay_s if self.restart else math.inf
             if proc.restart_at_s is not None and now_s >= proc.restart_at_s:
                 self._spawn(proc)
                 self._event("process_restart", node=name, pid=proc.popen.pid if proc.popen else None)
+                self._expect(name)
+        gate = self.gate
+        if gate is not None and self._gate_restart_at_s is None and not self._gate_expected_exit:
+            code = gate.poll()
+            if code is not None:
+                self._gate_exits.append({"t_s": round(now_s, 4), "code": code})
+                self._died(GATE, code, now_s, f": tools are cut off and its public endpoint "
+                           f"{self.listen} is free for any process to take")
+                self._gate_restart_at_s = now_s + self.restart_delay_s if self.restart else math.inf
+        if self._gate_restart_at_s is not None and now_s >= self._gate_restart_at_s:
+            self._respawn_gate()
+        if self.liveness is not None:
+            for hung in self.liveness.check(now_s):
+                self._report_liveness(hung)
+
+    def _report_liveness(self, finding: Hung | Resumed) -> None:
+        """A process hung (event, fault, violation: the run fails) or resumed (event, notice)."""
+        names = {NODE_CLASSES[n]: n for n in self.names}
+        name = names.get(finding.process, finding.process)
+        bound = self.liveness.bound_s if self.liveness is not None else HANG_BOUND_S
+        if isinstance(finding, Hung):
+            self.events.append({"t_s": round(finding.now_s, 4), "kind": "process_hung", "node": name,
+                                "last_tick_s": round(finding.last_tick_s, 4),
+                                "silent_s": round(finding.silent_s, 4)})
+            self._fault("process_hung", f"{name}: no liveness tick for {finding.silent_s:.2f} s "
+                        f"(more than {bound:g} s) since t={finding.last_tick_s:.2f} s")
+            self.violations.append(f"process: {name} hung: no liveness tick for more than "
+                                   f"{bound:g} s from t={finding.last_tick_s:.2f} s")
+            return
+        cause = (f"{finding.lost} ticks lost on the way" if finding.lost
+                 else "the process was not run")
+        self.events.append({"t_s": round(finding.to_s, 4), "kind": "process_resumed", "node": name,
+                            "silent_s": round(finding.silent_s, 4), "lost_ticks": finding.lost})
+        if self.bus is not None:
+            self.bus.publish(Topic.NOTICE, Notice(
+                kind="resumed", source=LAUNCHER_USER, code="process_hung",
+                reason=f"{name}: ticks again at t={finding.to_s:.2f} s after {finding.silent_s:.2f} s "
+                       f"silent ({cause})"))
 
     # ------------------------------------------------------------------ clocks
 
@@ -715,6 +828,16 @@ class Launch:
                     monitor.observe_delivered(topic, msg)
 
             self.bus.tap_stamped(judge)
+            liveness = self.liveness = Liveness(
+                [*(NODE_CLASSES[n] for n in self.names), *([GATE] if self.gate is not None else [])])
+
+            def tick(topic: str, msg: Any, sent_s: float) -> None:
+                """Liveness ticks, by their send time on the run's axis (``runtime.supervision``)."""
+                if topic == Topic.TICK and isinstance(msg, NodeTick):
+                    for finding in liveness.tick(msg.process, msg.seq, sent_s - epoch):
+                        self._report_liveness(finding)
+
+            self.bus.tap_stamped(tick)
             clock = LaunchClock(epoch_monotonic_s=epoch, scenario=scenario.name,
                                 duration_s=spec.duration_s)
             if not refused:                 # refused: the nodes never get an epoch, never step
@@ -726,6 +849,7 @@ class Launch:
 
             def before(now_s: float) -> None:
                 faults.now_s = recorder.now_s = now_s
+                self._act(now_s)       # fault injection at the player's resolution (10 ms)
                 if on_tick is not None:
                     on_tick(now_s)
 
@@ -769,6 +893,9 @@ class Launch:
                                  "killed_at_stop": p.killed_at_stop,
                                  "report": name in reports}
                           for name, p in self.procs.items()},
+            "gate": {"listen": self.gate_listen, "public": self.listen,
+                     "exits": self._gate_exits} if self.gate_listen else None,
+            "liveness": self.liveness.report() if self.liveness is not None else None,
             "launcher": {"runtime": runtime.stats(), "bus": self.bus.stats.as_dict()},
             "nodes": reports,
             "access": self.access_report(),
@@ -784,14 +911,15 @@ class Launch:
     def stop(self) -> dict[str, dict[str, Any]]:
         """Stop every node (SIGTERM, then SIGKILL) and collect their reports."""
         procs = list(self.procs.values())
+        popens = [p.popen for p in procs if p.popen is not None]
         for proc in procs:
             proc.expected_exit = True
-            if proc.popen is not None and proc.popen.poll() is None:
+        self._gate_expected_exit = True
+        for popen in [*popens, *([self.gate] if self.gate is not None else [])]:
+            if popen.poll() is None:
                 with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.popen.pid, signal.SIGTERM)
-        if self.gate is not None and self.gate.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(self.gate.pid, signal.SIGTERM)
+                    os.killpg(popen.pid, signal.SIGTERM)
+                    os.killpg(popen.pid, signal.SIGCONT)   # a stalled one (--stall) handles it
         for proc in procs:
             self._stop_proc(proc)
         self._stop_gate()

@@ -16,7 +16,7 @@ DUMP_WAIT_S = 0.5               # (faulthandler: needs no GIL, so it works in a 
 
 def stop_process_group(popen: subprocess.Popen, sig: int = signal.SIGTERM,
                        grace_s: float | None = None, dump: bool = True) -> bool:
-    """Send ``sig`` to ``popen``'s process group and wait ``grace_s`` (``STOP_GRACE_S``); a
+    """Send ``sig`` (then SIGCONT) to ``popen``'s process group and wait ``grace_s`` (``STOP_GRACE_S``); a
     process still up then dumps every thread's stack (``DUMP_SIGNAL``, when ``dump``) and the
     group is killed. Stragglers in the group are killed either way. True if it had to be killed."""
     grace_s = STOP_GRACE_S if grace_s is None else grace_s
@@ -24,6 +24,7 @@ def stop_process_group(popen: subprocess.Popen, sig: int = signal.SIGTERM,
     if popen.poll() is None:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(popen.pid, sig)
+            os.killpg(popen.pid, signal.SIGCONT)    # a stopped process (SIGSTOP) handles it now
     try:
         popen.wait(grace_s)
     except subprocess.TimeoutExpired:
