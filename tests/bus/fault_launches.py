@@ -99,10 +99,11 @@ def judge(fault: Fault, summary: dict[str, Any], trace: Path, exit_code: int) ->
                 for r in csv.DictReader(f)]
     max_speed = max(abs(v) for _, v, _ in rows)
     final_odo = max(o for _, _, o in rows)
-    rest_s = next((t for t, v, o in rows if t >= FAULT_AT_S and abs(v) < REST_MPS
-                   and o < DISTANCE_M - COMPLETE_M), None)
-    after = [o for t, _, o in rows if rest_s is not None and t >= rest_s]
-    travel = (max(after) - min(after)) if after else 0.0
+    rest = next((i for i, (t, v, o) in enumerate(rows) if t >= FAULT_AT_S and abs(v) < REST_MPS
+                 and o < DISTANCE_M - COMPLETE_M), None)
+    rest_s = None if rest is None else rows[rest][0]
+    after = [o for _, _, o in rows[rest:]] if rest is not None else []
+    travel = (max(after) - min(after)) if after else 0.0     # from the first row at rest on
     completed = abs(final_odo - DISTANCE_M) <= COMPLETE_M
     events = summary["events"]
     interrupted = sorted({e.get("code", "") for e in events if e["kind"] == "interrupted"})
@@ -143,6 +144,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="keep the run folders and sweep.json here")
     parser.add_argument("--quick", action="store_true", help="the first four faults only")
+    parser.add_argument("--rejudge", action="store_true",
+                        help="judge the run folders already in --out again, launch nothing")
+    parser.add_argument("--only", type=int, nargs="*", help="these fault numbers only")
     args = parser.parse_args(argv)
     out = args.out or Path(tempfile.mkdtemp(prefix="overdrive-fault-sweep-"))
     out.mkdir(parents=True, exist_ok=True)
@@ -151,9 +155,15 @@ def main(argv: list[str] | None = None) -> int:
           "interrupted | hang reported after s | judge | verdict |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for i, fault in enumerate(sweep(args.quick)):
+        if args.only is not None and i not in args.only:
+            continue
         run_dir = out / f"{i:02d}"
         started = time.monotonic()
-        outcome, _summary = run_fault(fault, run_dir)
+        if args.rejudge:
+            summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+            outcome = judge(fault, summary, run_dir / "trace.csv", 1 if summary["violations"] else 0)
+        else:
+            outcome, _summary = run_fault(fault, run_dir)
         results.append({**asdict(outcome), "wall_s": round(time.monotonic() - started, 1)})
         rest = "-" if outcome.rest_after_fault_s is None else f"{outcome.rest_after_fault_s:.2f} s"
         print(f"| {fault.label} | {outcome.exit_code} | {outcome.max_speed_mps:.2f} | "
@@ -164,6 +174,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{'ok' if outcome.ok else 'FAIL: ' + outcome.why} |", flush=True)
         if args.out is None:
             shutil.rmtree(run_dir, ignore_errors=True)
+    if args.rejudge or args.only is not None:
+        return 1 if [r for r in results if not r["ok"]] else 0
     (out / "sweep.json").write_text(json.dumps(results, indent=2) + "\n", encoding="utf-8")
     failed = [r for r in results if not r["ok"]]
     print(f"{len(results) - len(failed)} of {len(results)} held; results: {out / 'sweep.json'}")

@@ -410,6 +410,7 @@ class Launch:
         self._gate_restart_at_s: float | None = None
         self._gate_expected_exit = False
         self.liveness: Liveness | None = None
+        self._epoch = 0.0                    # the run's epoch on CLOCK_MONOTONIC, once it plays
         """Who is hung (``runtime.supervision``): made when the run starts playing."""
         self._niceness: int | None = None    # the launcher's own before start(), to restore
         self._nice_tid = 0                   # ... on the thread that called start()
@@ -557,9 +558,12 @@ class Launch:
         self._expect(name)
 
     def _expect(self, name: str) -> None:
-        """``name`` was (re)started now: supervised again from its first tick."""
+        """``name`` was (re)started just now: supervised again from its first tick. Now is the
+        clock's, not the step's: the old process ticked until it was stopped, after the step's
+        scheduled time, and a tick of it must not count as the new one's."""
         if self.liveness is not None:
-            self.liveness.expect(NODE_CLASSES.get(name, name), self.now_s, RESTART_GRACE_S)
+            self.liveness.expect(NODE_CLASSES.get(name, name), time.monotonic() - self._epoch,
+                                 RESTART_GRACE_S)
 
     def _act(self, now_s: float) -> None:
         """Run the fault-injection actions that are due (``ACTIONS``)."""
@@ -816,7 +820,7 @@ class Launch:
             recorder = self.recorder = Recorder(trace_file, keep_rows=False)
             monitor = make_monitor(scenario, DEFAULT_PERIOD_S)
             self.bus.tap(recorder.observe)
-            epoch = time.monotonic() + START_LEAD_S
+            epoch = self._epoch = time.monotonic() + START_LEAD_S
 
             def judge(topic: str, msg: Any, sent_s: float) -> None:
                 """The monitor sees each message at its send time on the run's axis."""
