@@ -91,10 +91,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 @pytest.mark.parametrize(("flag", "message"), [
     ("--stall=move@x", "expected NODE@AT_S"),
-    ("--stall=move@1:0", "FOR_S must be a positive number"),
     ("--stall=move@1:nan", "FOR_S must be a positive number"),
-    ("--kill=move", "expected NODE@AT_S"),
-    ("--kill=@3", "expected NODE@AT_S"),
     ("--restart-node=move@-1", "expected NODE@AT_S"),
     ("--kill=planner@3", "'planner' is not a process of this run"),
     ("--stall=move@9999:1", "not a time in the run"),
