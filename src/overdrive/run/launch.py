@@ -410,8 +410,8 @@ class Launch:
         self._gate_restart_at_s: float | None = None
         self._gate_expected_exit = False
         self.liveness: Liveness | None = None
-        self._epoch = 0.0                    # the run's epoch on CLOCK_MONOTONIC, once it plays
         """Who is hung (``runtime.supervision``): made when the run starts playing."""
+        self._epoch = 0.0                    # the run's epoch on CLOCK_MONOTONIC, once it plays
         self._niceness: int | None = None    # the launcher's own before start(), to restore
         self._nice_tid = 0                   # ... on the thread that called start()
         if self.secure:
@@ -570,8 +570,10 @@ class Launch:
         self.now_s = now_s
         while self.actions and self.actions[0][0] <= now_s + 1e-9:
             _at, what, name = self.actions.pop(0)
-            if what == "restart":
-                self.restart_gate() if name == GATE else self.restart_node(name)
+            if what == "restart" and name == GATE:
+                self.restart_gate()
+            elif what == "restart":
+                self.restart_node(name)
             elif name == GATE:
                 self.signal_gate(ACTIONS[what])
             else:
@@ -585,6 +587,7 @@ class Launch:
             self._event("process_signal", node=GATE, signal=signal.Signals(sig).name.lower())
 
     def restart_gate(self) -> None:
+        """Stop the tool gate (SIGTERM, wait) and start it again on the same endpoints."""
         if self.gate is not None and self.gate.poll() is None:
             self._gate_expected_exit = True
             self._stop_gate()
