@@ -170,7 +170,8 @@ def _parse_stall(text: str) -> list[tuple[float, str, str]]:
               help="Run folder (default runs/NAME-TIMESTAMP/).")
 @click.option("--listen", default=DEFAULT_ENDPOINT, show_default=True,
               help="The launcher's endpoint, where pub/echo connect.")
-@click.option("--restart", is_flag=True, help="Restart a node process that dies.")
+@click.option("--restart", is_flag=True,
+              help="Restart a process (a node or the tool gate) that dies, 0.5 s after.")
 @click.option("--kill", "kills", multiple=True, metavar="NODE@AT_S",
               help="Fault injection: SIGKILL a process (a node or `gate`) at scenario time AT_S "
                    "(repeat).")
