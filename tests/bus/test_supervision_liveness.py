@@ -128,3 +128,11 @@ def test_the_tick_node_counts_its_ticks() -> None:
     assert node.period_s == P and node.subscriptions == ()
     assert [node.step(0.0, []) for _ in range(2)] == [
         [(Topic.TICK, NodeTick(process="move", seq=0))], [(Topic.TICK, NodeTick(process="move", seq=1))]]
+
+
+def test_a_tick_older_than_one_already_seen_changes_nothing() -> None:
+    live = Liveness(["move", "speed"])
+    assert live.processes == ["move", "speed"]
+    assert live.tick("move", 1, 0.2) == [] and live.tick("move", 0, 0.1) == []
+    assert live.check(0.6) == [Hung("speed", 0.0, pytest.approx(0.6), 0.6)]
+    assert live.check(0.69) == [], "judged from the newest tick, 0.2 s"
