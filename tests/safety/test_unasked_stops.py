@@ -21,9 +21,11 @@ from overdrive.messages import (
     Truth,
 )
 from overdrive.observe.judge import Monitor
+from overdrive.run.compose import build_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import ScenarioError, parse_scenario
 from overdrive.scenario.vehicles import PRESETS
+from overdrive.servers.speed import SpeedServer
 from overdrive.vehicle.plant import World
 from overdrive.vehicle.sim_node import VehicleSim
 from tests.conftest import PRESET_NAMES, reachable_mps
@@ -130,6 +132,61 @@ def test_a_short_speed_server_stall_carries_on_with_no_harder_a_throttle(preset:
     assert trail[0] <= before + 1e-6
     assert all(b - a <= 300.0 * 0.01 + 1e-6 for a, b in itertools.pairwise(trail))
     assert result.summary["odometer_m"] == pytest.approx(DISTANCE_M, abs=0.5)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_stop_whose_speed_state_reports_were_all_lost_still_latches(preset: str) -> None:
+    """SpeedState is a droppable state topic: every report of a watchdog stop lost. Was: the
+    speed server cleared its stop on the driving module's next non-moving request and the old
+    MOVE drove on (26.6 m, the judge's unintended motion). Now the move server latches on the
+    rise of ``SpeedState.unasked_stops`` it sees after the loss."""
+    result = run(preset, [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0)),
+                          drop(7.9, "speed_state", 3.0), drop(8.0, "set_speed", 0.3)],
+                 duration_s=30.0)
+    assert result.summary["violations"] == []
+    [interrupted] = interruptions(result)
+    assert interrupted["source"] == "move" and 10.9 <= interrupted["t_s"] <= 11.0
+    assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
+
+
+class RestartingNode:
+    """A node replaced by a fresh instance at ``at_s``, as a process restarted between two of
+    its steps (lock-step: no gap, so no watchdog of anyone else sees it)."""
+
+    def __init__(self, node: Any, at_s: float, fresh: Any) -> None:
+        self.node, self.at_s, self.fresh = node, at_s, fresh
+        self.name, self.period_s, self.subscriptions = node.name, node.period_s, node.subscriptions
+
+    def step(self, now_s: float, inbox: Any) -> list:
+        if self.fresh is not None and now_s >= self.at_s - 1e-9:
+            self.node, self.fresh = self.fresh(), None
+        return self.node.step(now_s, inbox)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.node, name)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("initial_state", ["run", "parked"])
+def test_a_restarted_speed_server_does_not_drive_the_old_command_on(
+        preset: str, initial_state: str) -> None:
+    """The speed server restarts mid-MOVE (a fresh process, built as a run builds it: in run
+    for a ready vehicle, else parked) with its client still in run. Was: the fresh server, with
+    no latch of its own, took the old run (at once, or after its runwait) and the MOVE went on.
+    Now its later ``SpeedState.started_s`` is an unasked stop to the move server: interrupted,
+    at rest for good."""
+    params = PRESETS[preset]
+    data = {"name": "restart", "vehicle": preset, "start": "ready", "duration_s": 25.0,
+            "seed": 7, "events": [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0))]}
+    scenario = parse_scenario(data)
+    nodes = [RestartingNode(n, 8.0, lambda: SpeedServer(
+        params, initial_state=initial_state,
+        initial_gear=params.drive_gear if initial_state == "run" else None))
+             if n.name == "speed" else n for n in build_nodes(scenario)]
+    result = run_scenario(scenario, None, plot=False, record_mcap=False, nodes=nodes)
+    assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
+    assert result.summary["odometer_m"] < DISTANCE_M - 10.0
+    assert [e["code"] for e in interruptions(result)] == ["restart"]
 
 
 # --------------------------------------------------------------------------- sweep

@@ -190,7 +190,8 @@ class SpeedServer:
         self.client_fault = 0
         self.estop_reason = ""
         self.estop_code = 0      # the fault code that latched the e-stop (SpeedState.estop_code)
-        self.estop_since_s = -math.inf   # when it was latched
+        self.estop_since_s = -math.inf   # when it was latched (by its latest unasked cause)
+        self.unasked_stops = 0   # SpeedState.unasked_stops: never reset within this process
         self.fault = 0
         self.fault_message = ""
         self.fault_since_s = -math.inf
@@ -388,7 +389,10 @@ class SpeedServer:
                     code, field="fault", value=spss.fault, low=0, high=CLIENT_FAULT_MAX)
                     + "; stopping anyway")
                 self._raise_fault(now_s, int(code), message, out)
-                self._estop(f"client fault {spss.fault}", out, spss.fault)
+                # confined to the clients' range: an out-of-range code is still the client's
+                # own stop (it asked), never one of the server's (an unasked stop)
+                self._estop(f"client fault {spss.fault}", out,
+                            min(max(spss.fault, 1), CLIENT_FAULT_MAX))
             return new
         self.client_fault = 0
         invalid = self._validate(spss)
@@ -487,8 +491,15 @@ class SpeedServer:
                                          reason=message)))
 
     def _estop(self, reason: str, out: list, code: int) -> None:
-        if not self.estop_reason:
-            self.estop_code = code   # the first cause names the stop while it is latched
+        """Latch an e-stop. A stop of the server's own (code above the clients') is counted
+        and names the stop from then on, over any earlier cause: the latest unasked cause is
+        the one a clearing request must have been sent after. A client's code names it only
+        when nothing else latched it."""
+        unasked = code > CLIENT_FAULT_MAX
+        if unasked:
+            self.unasked_stops += 1
+        if unasked or not self.estop_reason:
+            self.estop_code = code
             self.estop_since_s = self.last_now_s if self.last_now_s is not None else 0.0
         self.estop_reason = reason
         out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code=str(code),
@@ -608,6 +619,7 @@ class SpeedServer:
         if event == "pause_timeout":
             self.goal, self.auto_parked = "parked", True
         elif event == "stalled" and not self.engine_cut:
+            self.unasked_stops += 1   # no e-stop (the engine restarts) but a stop all the same
             self._raise_fault(now_s, FaultCode.ENGINE_STALLED,
                               fault_message(FaultCode.ENGINE_STALLED, state=old), out)
         elif event == "shift_failed":
@@ -750,6 +762,7 @@ class SpeedServer:
             state=self.state, fault=fault, fault_message=fault_message,
             hint=self.hint, estop=self.latched,  # type: ignore[arg-type]
             estop_code=self.estop_code if self.latched else 0,
+            unasked_stops=self.unasked_stops, started_s=self.first_step_s,
             direction_hold=self.direction_hold.state,  # type: ignore[arg-type]
         )
 
