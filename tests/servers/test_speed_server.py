@@ -686,3 +686,47 @@ def test_an_untrusted_gps_is_not_a_source_of_the_slow_creep_rule() -> None:
     assert sorted(server._source_speeds_mps(1)) == [-0.08, 0.0]
     server.motion.gps_track.trusted = False
     assert server._source_speeds_mps(1) == [-0.08]
+
+
+# --------------------------------------------------------------------------- unasked stops
+
+@pytest.mark.parametrize("code", [5000, 1001, -7])
+def test_a_client_fault_code_out_of_range_is_still_the_clients_own_stop(code: int) -> None:
+    """The client sent a fault: it asked for the stop, whatever the code. Was: a code above
+    999 named the e-stop as one of the server's own (1001: a watchdog stop to the move server
+    and the judge). Now the e-stop's code stays in the clients' 1..999, nothing is counted."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(1.0, spss("run", 3.0, 1.0))
+    rig.tick(spss("run", 3.0, 1.0, fault=code))
+    reply = rig.replies[-1]
+    assert reply.estop and 1 <= reply.estop_code <= 999
+    assert reply.unasked_stops == 0
+    assert [n.code for _, n in rig.notices if n.kind == "estop"] == [str(reply.estop_code)]
+
+
+def test_a_watchdog_stop_after_a_client_fault_is_named_by_the_watchdog() -> None:
+    """A client fault, then the client falls silent: the watchdog's stop is one the stack did
+    not ask for. Was: the client's code kept naming it, so the old run cleared it at rest.
+    Now the latest unasked cause names it and only a non-moving request clears it."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(2.0, spss("run", 3.0, 1.0))
+    rig.run(1.0, spss("run", 3.0, 1.0, fault=40))
+    rig.run(3.0)                                   # silent: the watchdog fires, it stops
+    assert rig.replies[-1].estop_code == FaultCode.SPSS_TIMEOUT
+    rig.run(2.0, spss("run", 3.0, 1.0))             # the old run at rest: still latched
+    assert rig.server.latched and rig.replies[-1].estop_code == FaultCode.SPSS_TIMEOUT
+    rig.tick(spss("idle", 0.0, 1.0))
+    assert not rig.server.latched
+
+
+def test_every_unasked_stop_is_counted_and_the_count_survives_clearing() -> None:
+    """``SpeedState.unasked_stops`` rises at each stop of the server's own and is never reset,
+    so a client that lost every report of a stop still sees that one happened."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    for stops in (1, 2):
+        rig.run(1.0, spss("run", 3.0, 1.0))
+        rig.run(3.0)                               # silent: watchdog, at rest
+        rig.tick(spss("idle", 0.0, 1.0))           # cleared
+        assert not rig.server.latched
+        assert rig.replies[-1].unasked_stops == stops
+    assert rig.replies[-1].started_s == 0.0
