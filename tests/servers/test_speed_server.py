@@ -730,3 +730,15 @@ def test_every_unasked_stop_is_counted_and_the_count_survives_clearing() -> None
         assert not rig.server.latched
         assert rig.replies[-1].unasked_stops == stops
     assert rig.replies[-1].started_s == 0.0
+
+
+def test_a_rollback_during_a_stall_of_the_server_is_measured_in_full() -> None:
+    """The server stalls 0.3 s while the vehicle rolls back at 0.4 m/s. Was: the direction
+    hold got the controllers' bounded step (0.02 s) and counted 8 mm of the 0.12 m rolled
+    back. Now it measures with the real elapsed time: 0.124 m, past the 0.10 m limit."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(1.0, spss("run", 3.0, 1.0))
+    last_s = rig.now_s - PERIOD_S
+    rig.vehicle.speed_mps = -0.4
+    rig.server.step(last_s + 0.31, [*rig.vehicle.sensors(), (Topic.SET_SPEED, spss("run", 3.0))])
+    assert rig.server.direction_hold.back_m == pytest.approx(0.4 * 0.31, abs=0.01)

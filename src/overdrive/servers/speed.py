@@ -251,7 +251,7 @@ class SpeedServer:
             self._enter(now_s, new_state, event, out)
 
         self.hold_command = None
-        pedals, powertrain = self._actuators(control_dt_s)
+        pedals, powertrain = self._actuators(control_dt_s, dt_s)
         pedals = self._after_gap(pedals)
         self.pedals = pedals
         self._hold_notices(now_s, out)
@@ -641,7 +641,10 @@ class SpeedServer:
 
     # ------------------------------------------------------------------ outputs
 
-    def _actuators(self, dt_s: float) -> tuple[PedalCommand, PowertrainCommand]:
+    def _actuators(self, dt_s: float, elapsed_s: float) -> tuple[PedalCommand, PowertrainCommand]:
+        """This period's pedals and powertrain. ``dt_s``: the bounded step the controllers
+        integrate; ``elapsed_s``: the real time since the last step, which the direction hold
+        measures with (a rollback during a stall is travel all the same)."""
         p = self.params
         row = STATE_TABLE[self.state]
         state = self.state
@@ -684,7 +687,7 @@ class SpeedServer:
         result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g, sin_pitch, gear,
                                       self.stopped)
         hold = self.hold_command = self.direction_hold.step(
-            dt_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
+            elapsed_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
             throttle_pct=status.throttle_pct, gear=gear,
             source_speeds_mps=self._source_speeds_mps(direction))
         if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
