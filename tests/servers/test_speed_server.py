@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S
 from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import (
     GpsIns,
@@ -742,3 +743,29 @@ def test_a_rollback_during_a_stall_of_the_server_is_measured_in_full() -> None:
     rig.vehicle.speed_mps = -0.4
     rig.server.step(last_s + 0.31, [*rig.vehicle.sensors(), (Topic.SET_SPEED, spss("run", 3.0))])
     assert rig.server.direction_hold.back_m == pytest.approx(0.4 * 0.31, abs=0.01)
+
+
+def _accelerating_then_stalled(gap_s: float) -> tuple[Rig, float, float]:
+    """A server accelerating towards 3 m/s that is then not stepped for ``gap_s``: the rig,
+    the throttle and the speed reference before the gap."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(1.0, spss("run", 3.0, 1.0))
+    before = (rig.output(PedalCommand).throttle_pct, rig.server.controller.v_ref_mps)
+    last_s = rig.now_s - PERIOD_S
+    rig.server.step(last_s + gap_s, [*rig.vehicle.sensors(), (Topic.SET_SPEED, spss("run", 3.0))])
+    return rig, *before
+
+
+def test_after_a_stall_the_throttle_is_no_harder_than_before_it() -> None:
+    """The first throttle after a 0.3 s gap, while the loop was raising it, is capped at the
+    one before the gap (without the cap the loop would go on raising it at once)."""
+    rig, throttle_before, _ = _accelerating_then_stalled(0.31)
+    assert throttle_before > 0.0 and rig.server.stalls == 1
+    assert rig.server.pedals.throttle_pct <= throttle_before + 1e-9
+
+
+def test_a_stall_advances_the_speed_ramp_by_no_more_than_two_periods() -> None:
+    """The controllers integrate at most MAX_CONTROL_STEP_S per step: after a 0.3 s gap the
+    speed reference has moved by at most 2 periods at the requested 1 m/s^2, not 0.3 s."""
+    rig, _, ref_before = _accelerating_then_stalled(0.31)
+    assert rig.server.controller.v_ref_mps - ref_before <= 1.0 * MAX_CONTROL_STEP_S + 1e-9
