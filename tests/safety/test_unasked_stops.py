@@ -369,3 +369,31 @@ def test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for(
         monitor.tick(now)
     found = {d["rule"] for d in monitor.details()}
     assert ("unintended_motion" in found) == flagged, monitor.details()
+
+
+@pytest.mark.parametrize("changed", [False, True])
+def test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for(changed: bool) -> None:
+    """A set_speed run: the scenario is the speed server's client and repeats its request
+    every 100 ms. Was: each repeat counted as a new command, so motion after a watchdog stop
+    was never flagged there. Now only a change of request (state, gear, fault) is one: the
+    repeated old ``run`` moving the vehicle is unintended motion; idle then run is not."""
+    monitor = Monitor(PRESETS["escape-hybrid"], 1.0, 0.01, spss_is_command=True)
+    run_spss = SetSpeed(speed_mps=1, accel_mps2=1, gear="drive", state="run")
+    x = 0.0
+    for tick in range(1, 400):
+        now = round(tick * 0.01, 6)
+        monitor.now_s = now
+        if tick % 10 == 0:
+            spss = run_spss
+            if changed and tick == 250:
+                spss = SetSpeed(speed_mps=0, accel_mps2=1, gear="drive", state="idle")
+            monitor.observe(Topic.SET_SPEED, spss)
+            monitor.observe_delivered(Topic.SET_SPEED, spss)
+        if tick == 20:
+            monitor.observe(Topic.NOTICE, Notice(kind="estop", source="speed", code="1001"))
+        speed = 0.0 if 0.5 <= now < 3.0 else 1.0     # at rest, then it moves on
+        x += 0.01 * speed
+        monitor.observe(Topic.TRUTH, _truth(x, speed))
+        monitor.tick(now)
+    found = {d["rule"] for d in monitor.details()}
+    assert ("unintended_motion" in found) == (not changed), monitor.details()
