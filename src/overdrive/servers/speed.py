@@ -23,7 +23,13 @@ Decisions the seed leaves open (documented in ``docs/speed-server.md``):
   does not move (paused, idle, parked): a client still asking for ``run`` has not seen the
   stop, so the old command never drives on by itself; a new ``run`` passes the 5 s runwait.
 - The vehicle's own command timeout (``VehicleStatus.command_timeout``: it braked because no
-  pedal command came, the server or its link stalled) is an emergency stop too (fault 1012).
+  pedal command came, the server or its link stalled) is an emergency stop too (fault 1012;
+  simulation only: JAUS does not carry it, an XGV's own 0.5 s timeout acts unreported).
+- The latest unasked cause names a latched e-stop; a client's fault code is confined to
+  1..999 (it asked for the stop, whatever its code).
+- ``SpeedState.unasked_stops`` counts the stops made on the server's own (never reset) and
+  ``started_s`` is its first step: a client that lost every report of a stop, or talks to a
+  restarted server with no latch, latches on a rise of the one or a change of the other.
 - A stall is not one long step: the controllers integrate at most ``MAX_CONTROL_STEP_S`` per
   step, and after a gap the first throttle is no more than the one before it (the loop is
   reset to it, so its integrator holds), rising from there at the loop's own slew rate.
