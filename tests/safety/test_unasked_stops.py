@@ -25,6 +25,7 @@ from overdrive.run.compose import build_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import ScenarioError, parse_scenario
 from overdrive.scenario.vehicles import PRESETS
+from overdrive.servers.driving import DrivingModule
 from overdrive.servers.speed import SpeedServer
 from overdrive.vehicle.plant import World
 from overdrive.vehicle.sim_node import VehicleSim
@@ -168,18 +169,22 @@ class RestartingNode:
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("initial_state", ["run", "parked"])
+@pytest.mark.parametrize("gap_s", [0.0, 0.3])
 def test_a_restarted_speed_server_does_not_drive_the_old_command_on(
-        preset: str, initial_state: str) -> None:
+        preset: str, initial_state: str, gap_s: float) -> None:
     """The speed server restarts mid-MOVE (a fresh process, built as a run builds it: in run
     for a ready vehicle, else parked) with its client still in run. Was: the fresh server, with
     no latch of its own, took the old run (at once, or after its runwait) and the MOVE went on.
     Now its later ``SpeedState.started_s`` is an unasked stop to the move server: interrupted,
     at rest for good."""
     params = PRESETS[preset]
+    events = [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0))]
+    if gap_s:   # down for a while: the vehicle's command timeout brakes meanwhile
+        events.append(stall(8.0, "speed", gap_s))
     data = {"name": "restart", "vehicle": preset, "start": "ready", "duration_s": 25.0,
-            "seed": 7, "events": [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0))]}
+            "seed": 7, "events": events}
     scenario = parse_scenario(data)
-    nodes = [RestartingNode(n, 8.0, lambda: SpeedServer(
+    nodes = [RestartingNode(n, 8.0 + gap_s, lambda: SpeedServer(
         params, initial_state=initial_state,
         initial_gear=params.drive_gear if initial_state == "run" else None))
              if n.name == "speed" else n for n in build_nodes(scenario)]
@@ -187,6 +192,34 @@ def test_a_restarted_speed_server_does_not_drive_the_old_command_on(
     assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
     assert result.summary["odometer_m"] < DISTANCE_M - 10.0
     assert [e["code"] for e in interruptions(result)] == ["restart"]
+    assert result.summary["violations"] == []
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("gap_s", [0.0, 0.3])
+def test_a_restarted_driving_module_never_drives_on_by_itself(preset: str, gap_s: float) -> None:
+    """The driving module holds no command of its own (the move server's is in force and it
+    re-sends it). Restarted with no gap: no stop happened, the MOVE carries on to its end, no
+    overrun. Restarted after 0.3 s down: the SPSS watchdog's stop, which the move server
+    latches (1001): at rest for good."""
+    params = PRESETS[preset]
+    events = [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0))]
+    if gap_s:
+        events.append(stall(8.0, "driving", gap_s))
+    scenario = parse_scenario({"name": "restart", "vehicle": preset, "start": "ready",
+                               "duration_s": 25.0, "seed": 7, "events": events})
+    nodes = [RestartingNode(n, 8.0 + gap_s, lambda n=n: DrivingModule(
+        params, config=n.config, friction=scenario.spec.world.friction))
+             if n.name == "driving" else n for n in build_nodes(scenario)]
+    result = run_scenario(scenario, None, plot=False, record_mcap=False, nodes=nodes)
+    assert result.summary["violations"] == []
+    assert result.summary["odometer_m"] <= DISTANCE_M + 0.05
+    if gap_s:
+        assert [e["code"] for e in interruptions(result)] == ["watchdog"]
+        assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
+    else:
+        assert interruptions(result) == []
+        assert result.summary["odometer_m"] == pytest.approx(DISTANCE_M, abs=0.5)
 
 
 # --------------------------------------------------------------------------- sweep

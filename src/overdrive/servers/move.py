@@ -393,9 +393,11 @@ class MoveServer:
             self.hold_clear_since_accept = True
 
     def _speed_stop(self, code: int, cause: str = "") -> None:
-        """Note a stop the speed server made on its own (its fault ``code``, 0 if unknown)."""
-        self.speed_stop_code = code
-        self.speed_stop_cause = cause or estop_cause(code)
+        """Note a stop the speed server made on its own (its fault ``code``, 0 if unknown); the
+        first of a step names the interruption (a restart, before the stop it then reports)."""
+        if not self.speed_stop_cause:
+            self.speed_stop_code = code
+            self.speed_stop_cause = cause or estop_cause(code)
 
     def _driving(self, now_s: float, msg: DrivingStatus, out: list) -> None:
         self.driving = msg
