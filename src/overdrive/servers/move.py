@@ -368,15 +368,16 @@ class MoveServer:
 
     def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
         seen = self.speed_seen
-        if seen is not None and (msg.started_s < seen[0] or (
-                msg.started_s == seen[0] and msg.unasked_stops < seen[1])):
+        if seen is not None and msg.started_s == seen[0] and msg.unasked_stops < seen[1]:
             return   # older than one already seen (reordered): no news
         last_fault = self.speed_state.fault if self.speed_state is not None else 0
         self.speed_state = msg
         self.speed_seen = (msg.started_s, msg.unasked_stops)
-        if seen is not None and msg.started_s > seen[0]:
+        if seen is not None and msg.started_s != seen[0]:
             # a restarted speed server: nothing it latched survived, it may drive the old
-            # command on; a stop the stack did not ask for all the same
+            # command on; a stop the stack did not ask for all the same. Any change counts
+            # (a clock behind the old one's too): a late report of the old server only
+            # interrupts again, the safe side
             self._speed_stop(0, "restart")
         elif msg.estop and estop_cause(msg.estop_code):
             self._speed_stop(msg.estop_code)   # any report of the step counts (issue 38)
