@@ -95,7 +95,8 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py \
                 tests/servers/test_direction_hold.py \
                 tests/safety/test_unasked_stops.py::test_the_judge_flags_motion_after_a_watchdog_stop_without_a_new_command \
-                tests/safety/test_unasked_stops.py::test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for
+                tests/safety/test_unasked_stops.py::test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for \
+                tests/safety/test_unasked_stops.py::test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for
 
 # Wall-clock and OpenJAUS interop tests (real processes, sockets, fixed ports) run serially
 # after the parallel suite; the interop ones build OpenJAUS once into ~/.cache/overdrive

@@ -231,6 +231,11 @@ class SpeedState(Message, frozen=True):
     direction_hold: DirectionHoldState = "free"   # hill start / rollback hold; failed: held after a fault
     estop_code: int = 0            # the fault that latched the e-stop: 1..999 a client's (asked
                                    # for), 1001+ the server's own (watchdog, timeouts, actuators)
+    unasked_stops: int = 0         # stops the server made on its own since it started (e-stops
+                                   # 1001+, engine stalls); never reset: a client latches on any
+                                   # increase, so a lost SpeedState cannot hide one
+    started_s: float = 0.0         # this server's first step: a change is a restart (no latch
+                                   # survives it), which clients treat as an unasked stop
 
 
 # --------------------------------------------------------------------------- actuators

@@ -21,9 +21,12 @@ from overdrive.messages import (
     Truth,
 )
 from overdrive.observe.judge import Monitor
+from overdrive.run.compose import build_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import ScenarioError, parse_scenario
 from overdrive.scenario.vehicles import PRESETS
+from overdrive.servers.driving import DrivingModule
+from overdrive.servers.speed import SpeedServer
 from overdrive.vehicle.plant import World
 from overdrive.vehicle.sim_node import VehicleSim
 from tests.conftest import PRESET_NAMES, reachable_mps
@@ -130,6 +133,93 @@ def test_a_short_speed_server_stall_carries_on_with_no_harder_a_throttle(preset:
     assert trail[0] <= before + 1e-6
     assert all(b - a <= 300.0 * 0.01 + 1e-6 for a, b in itertools.pairwise(trail))
     assert result.summary["odometer_m"] == pytest.approx(DISTANCE_M, abs=0.5)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_stop_whose_speed_state_reports_were_all_lost_still_latches(preset: str) -> None:
+    """SpeedState is a droppable state topic: every report of a watchdog stop lost. Was: the
+    speed server cleared its stop on the driving module's next non-moving request and the old
+    MOVE drove on (26.6 m, the judge's unintended motion). Now the move server latches on the
+    rise of ``SpeedState.unasked_stops`` it sees after the loss."""
+    result = run(preset, [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0)),
+                          drop(7.9, "speed_state", 3.0), drop(8.0, "set_speed", 0.3)],
+                 duration_s=30.0)
+    assert result.summary["violations"] == []
+    [interrupted] = interruptions(result)
+    assert interrupted["source"] == "move" and 10.9 <= interrupted["t_s"] <= 11.0
+    assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
+
+
+class RestartingNode:
+    """A node replaced by a fresh instance at ``at_s``, as a process restarted between two of
+    its steps (lock-step: no gap, so no watchdog of anyone else sees it)."""
+
+    def __init__(self, node: Any, at_s: float, fresh: Any) -> None:
+        self.node, self.at_s, self.fresh = node, at_s, fresh
+        self.name, self.period_s, self.subscriptions = node.name, node.period_s, node.subscriptions
+
+    def step(self, now_s: float, inbox: Any) -> list:
+        if self.fresh is not None and now_s >= self.at_s - 1e-9:
+            self.node, self.fresh = self.fresh(), None
+        return self.node.step(now_s, inbox)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.node, name)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("initial_state", ["run", "parked"])
+@pytest.mark.parametrize("gap_s", [0.0, 0.3])
+def test_a_restarted_speed_server_does_not_drive_the_old_command_on(
+        preset: str, initial_state: str, gap_s: float) -> None:
+    """The speed server restarts mid-MOVE (a fresh process, built as a run builds it: in run
+    for a ready vehicle, else parked) with its client still in run. Was: the fresh server, with
+    no latch of its own, took the old run (at once, or after its runwait) and the MOVE went on.
+    Now its later ``SpeedState.started_s`` is an unasked stop to the move server: interrupted,
+    at rest for good."""
+    params = PRESETS[preset]
+    events = [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0))]
+    if gap_s:   # down for a while: the vehicle's command timeout brakes meanwhile
+        events.append(stall(8.0, "speed", gap_s))
+    data = {"name": "restart", "vehicle": preset, "start": "ready", "duration_s": 25.0,
+            "seed": 7, "events": events}
+    scenario = parse_scenario(data)
+    nodes = [RestartingNode(n, 8.0 + gap_s, lambda: SpeedServer(
+        params, initial_state=initial_state,
+        initial_gear=params.drive_gear if initial_state == "run" else None))
+             if n.name == "speed" else n for n in build_nodes(scenario)]
+    result = run_scenario(scenario, None, plot=False, record_mcap=False, nodes=nodes)
+    assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
+    assert result.summary["odometer_m"] < DISTANCE_M - 10.0
+    assert [e["code"] for e in interruptions(result)] == ["restart"]
+    assert result.summary["violations"] == []
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("gap_s", [0.0, 0.3])
+def test_a_restarted_driving_module_never_drives_on_by_itself(preset: str, gap_s: float) -> None:
+    """The driving module holds no command of its own (the move server's is in force and it
+    re-sends it). Restarted with no gap: no stop happened, the MOVE carries on to its end, no
+    overrun. Restarted after 0.3 s down: the SPSS watchdog's stop, which the move server
+    latches (1001): at rest for good."""
+    params = PRESETS[preset]
+    events = [move(0.5, DISTANCE_M, reachable_mps(preset, 8.0))]
+    if gap_s:
+        events.append(stall(8.0, "driving", gap_s))
+    scenario = parse_scenario({"name": "restart", "vehicle": preset, "start": "ready",
+                               "duration_s": 25.0, "seed": 7, "events": events})
+    nodes = [RestartingNode(n, 8.0 + gap_s, lambda n=n: DrivingModule(
+        params, config=n.config, friction=scenario.spec.world.friction))
+             if n.name == "driving" else n for n in build_nodes(scenario)]
+    result = run_scenario(scenario, None, plot=False, record_mcap=False, nodes=nodes)
+    assert result.summary["violations"] == []
+    assert result.summary["odometer_m"] <= DISTANCE_M + 0.05
+    if gap_s:
+        assert [e["code"] for e in interruptions(result)] == ["watchdog"]
+        assert travel_m(result, first_rest_s(result, 8.0)) < 0.01
+    else:
+        assert interruptions(result) == []
+        assert result.summary["odometer_m"] == pytest.approx(DISTANCE_M, abs=0.5)
 
 
 # --------------------------------------------------------------------------- sweep
@@ -312,3 +402,31 @@ def test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for(
         monitor.tick(now)
     found = {d["rule"] for d in monitor.details()}
     assert ("unintended_motion" in found) == flagged, monitor.details()
+
+
+@pytest.mark.parametrize("changed", [False, True])
+def test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for(changed: bool) -> None:
+    """A set_speed run: the scenario is the speed server's client and repeats its request
+    every 100 ms. Was: each repeat counted as a new command, so motion after a watchdog stop
+    was never flagged there. Now only a change of request (state, gear, fault) is one: the
+    repeated old ``run`` moving the vehicle is unintended motion; idle then run is not."""
+    monitor = Monitor(PRESETS["escape-hybrid"], 1.0, 0.01, spss_is_command=True)
+    run_spss = SetSpeed(speed_mps=1, accel_mps2=1, gear="drive", state="run")
+    x = 0.0
+    for tick in range(1, 400):
+        now = round(tick * 0.01, 6)
+        monitor.now_s = now
+        if tick % 10 == 0:
+            spss = run_spss
+            if changed and tick == 250:
+                spss = SetSpeed(speed_mps=0, accel_mps2=1, gear="drive", state="idle")
+            monitor.observe(Topic.SET_SPEED, spss)
+            monitor.observe_delivered(Topic.SET_SPEED, spss)
+        if tick == 20:
+            monitor.observe(Topic.NOTICE, Notice(kind="estop", source="speed", code="1001"))
+        speed = 0.0 if 0.5 <= now < 3.0 else 1.0     # at rest, then it moves on
+        x += 0.01 * speed
+        monitor.observe(Topic.TRUTH, _truth(x, speed))
+        monitor.tick(now)
+    found = {d["rule"] for d in monitor.details()}
+    assert ("unintended_motion" in found) == (not changed), monitor.details()

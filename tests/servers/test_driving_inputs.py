@@ -6,6 +6,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S
 from overdrive.dynamics.ellipse import ellipse_for, max_safe_speed_mps
 from overdrive.messages import (
     AdvanceAuthorization,
@@ -269,6 +270,20 @@ def test_steering_is_rate_limited_at_a_standstill(params):
     steer = outputs(out, Topic.STEER)[0]
     assert isinstance(steer, SteerCommand) and steer.source == "driving"
     assert steer.steer_pct == pytest.approx(steer_pct_for(node.curvature_1pm, params))
+
+
+def test_after_a_stall_the_steering_moves_no_more_than_two_periods_worth(params):
+    """The module is not stepped for 0.3 s after a full-lock request at a standstill: on
+    resume its steering moves by the rate over MAX_CONTROL_STEP_S (two periods), not over the
+    whole gap (which would be one jump of 30 periods' worth)."""
+    node = DrivingModule(params)
+    kmax = params.max_curvature_1pm
+    step(node, 0.0, (Topic.STEERING, SteeringRequest(curvature_1pm=kmax)))
+    before = node.curvature_1pm
+    out = step(node, 0.31)
+    rate = 0.8 * params.steer_rate_rps / params.wheelbase_m
+    assert status(out).curvature_1pm - before == pytest.approx(
+        min(kmax - before, rate * MAX_CONTROL_STEP_S))
 
 
 def test_curvature_limiter_holds_outside_never_steers_back():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import msgspec
 import pytest
 
 from overdrive.dynamics.vehicle_params import G_MPS2
@@ -596,3 +597,40 @@ def test_move_server_refuses_a_gps_ins_with_any_non_finite_field(field: str, bad
     rejected = [n for t, n in out if t == Topic.NOTICE and n.kind == "rejected"]
     assert rejected and rejected[0].code == "sensor"
     assert node.gps == good
+
+
+def _with_speed_state(inbox: list, **fields: Any) -> list:
+    return [(t, msgspec.structs.replace(m, **fields) if t == Topic.SPEED_STATE else m)
+            for t, m in inbox]
+
+
+@pytest.mark.parametrize(("fields", "code"), [
+    ({"unasked_stops": 2}, "unasked_stop"),
+    ({"unasked_stops": 1, "fault": 1001}, "watchdog"),
+    ({"started_s": 0.4}, "restart"),
+    ({"started_s": -5.0}, "restart")], ids=["jump-of-2", "cause-still-shown", "later-start",
+                                            "start-on-a-clock-behind"])
+def test_a_stop_seen_only_in_the_count_or_the_start_interrupts(preset, fields: dict,
+                                                              code: str) -> None:
+    """Every report of a speed server's stop lost (``SpeedState`` is droppable): the count
+    rose, by one or more, or the server restarted (its ``started_s`` changed). The command
+    is discarded all the same; nothing moves until a new command."""
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    out = node.step(0.5, _with_speed_state(sensors(preset, speed=3.0), **fields))
+    notice = last(out, Topic.NOTICE)
+    assert (notice.kind, notice.code) == ("interrupted", code) and node.active is None
+    out = run(node, 0.51, 1.0)
+    assert {m.distance_m for m in all_of(out, Topic.ADVANCE)} == {0.0}
+
+
+def test_an_old_speed_state_arriving_late_is_no_stop(preset) -> None:
+    """A report with a lower count from the same start is an old one, reordered: no news."""
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    node.step(0.5, _with_speed_state(sensors(preset, speed=3.0), unasked_stops=1))
+    out = run(node, 0.51, 0.5, (cmd(d=50.0, cid=2),), speed=3.0)
+    assert last(out, Topic.MOVE_REPLY).accepted
+    out = node.step(1.01, _with_speed_state(sensors(preset, speed=3.0), unasked_stops=0))
+    assert not [n for n in all_of(out, Topic.NOTICE) if n.kind == "interrupted"]
+    assert node.active is not None

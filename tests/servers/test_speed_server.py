@@ -9,6 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S
 from overdrive.dynamics.vehicle_params import VehicleParams
 from overdrive.messages import (
     GpsIns,
@@ -686,3 +687,85 @@ def test_an_untrusted_gps_is_not_a_source_of_the_slow_creep_rule() -> None:
     assert sorted(server._source_speeds_mps(1)) == [-0.08, 0.0]
     server.motion.gps_track.trusted = False
     assert server._source_speeds_mps(1) == [-0.08]
+
+
+# --------------------------------------------------------------------------- unasked stops
+
+@pytest.mark.parametrize("code", [5000, 1001, -7])
+def test_a_client_fault_code_out_of_range_is_still_the_clients_own_stop(code: int) -> None:
+    """The client sent a fault: it asked for the stop, whatever the code. Was: a code above
+    999 named the e-stop as one of the server's own (1001: a watchdog stop to the move server
+    and the judge). Now the e-stop's code stays in the clients' 1..999, nothing is counted."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(1.0, spss("run", 3.0, 1.0))
+    rig.tick(spss("run", 3.0, 1.0, fault=code))
+    reply = rig.replies[-1]
+    assert reply.estop and 1 <= reply.estop_code <= 999
+    assert reply.unasked_stops == 0
+    assert [n.code for _, n in rig.notices if n.kind == "estop"] == [str(reply.estop_code)]
+
+
+def test_a_watchdog_stop_after_a_client_fault_is_named_by_the_watchdog() -> None:
+    """A client fault, then the client falls silent: the watchdog's stop is one the stack did
+    not ask for. Was: the client's code kept naming it, so the old run cleared it at rest.
+    Now the latest unasked cause names it and only a non-moving request clears it."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(2.0, spss("run", 3.0, 1.0))
+    rig.run(1.0, spss("run", 3.0, 1.0, fault=40))
+    rig.run(3.0)                                   # silent: the watchdog fires, it stops
+    assert rig.replies[-1].estop_code == FaultCode.SPSS_TIMEOUT
+    rig.run(2.0, spss("run", 3.0, 1.0))             # the old run at rest: still latched
+    assert rig.server.latched and rig.replies[-1].estop_code == FaultCode.SPSS_TIMEOUT
+    rig.tick(spss("idle", 0.0, 1.0))
+    assert not rig.server.latched
+
+
+def test_every_unasked_stop_is_counted_and_the_count_survives_clearing() -> None:
+    """``SpeedState.unasked_stops`` rises at each stop of the server's own and is never reset,
+    so a client that lost every report of a stop still sees that one happened."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    for stops in (1, 2):
+        rig.run(1.0, spss("run", 3.0, 1.0))
+        rig.run(3.0)                               # silent: watchdog, at rest
+        rig.tick(spss("idle", 0.0, 1.0))           # cleared
+        assert not rig.server.latched
+        assert rig.replies[-1].unasked_stops == stops
+    assert rig.replies[-1].started_s == 0.0
+
+
+def test_a_rollback_during_a_stall_of_the_server_is_measured_in_full() -> None:
+    """The server stalls 0.3 s while the vehicle rolls back at 0.4 m/s. Was: the direction
+    hold got the controllers' bounded step (0.02 s) and counted 8 mm of the 0.12 m rolled
+    back. Now it measures with the real elapsed time: 0.124 m, past the 0.10 m limit."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(1.0, spss("run", 3.0, 1.0))
+    last_s = rig.now_s - PERIOD_S
+    rig.vehicle.speed_mps = -0.4
+    rig.server.step(last_s + 0.31, [*rig.vehicle.sensors(), (Topic.SET_SPEED, spss("run", 3.0))])
+    assert rig.server.direction_hold.back_m == pytest.approx(0.4 * 0.31, abs=0.01)
+
+
+def _accelerating_then_stalled(gap_s: float) -> tuple[Rig, float, float]:
+    """A server accelerating towards 3 m/s that is then not stepped for ``gap_s``: the rig,
+    the throttle and the speed reference before the gap."""
+    rig = Rig("ranger-6x6", state="run", gear="high")
+    rig.run(1.0, spss("run", 3.0, 1.0))
+    before = (rig.output(PedalCommand).throttle_pct, rig.server.controller.v_ref_mps)
+    last_s = rig.now_s - PERIOD_S
+    rig.server.step(last_s + gap_s, [*rig.vehicle.sensors(), (Topic.SET_SPEED, spss("run", 3.0))])
+    return rig, *before
+
+
+def test_after_a_stall_the_throttle_is_no_harder_than_before_it() -> None:
+    """The first throttle after a 0.3 s gap, while the loop was raising it, is capped at the
+    one before the gap (without the cap the loop would go on raising it at once)."""
+    rig, throttle_before, _ = _accelerating_then_stalled(0.31)
+    assert throttle_before > 0.0 and rig.server.stalls == 1
+    assert rig.server.pedals.throttle_pct <= throttle_before + 1e-9
+
+
+def test_a_stall_advances_the_speed_ramp_by_no_more_than_two_periods() -> None:
+    """The controllers integrate at most MAX_CONTROL_STEP_S per step: after a 0.3 s gap the
+    speed reference has moved by at most 2 periods at the requested 1 m/s^2, not 0.3 s."""
+    rig, _, ref_before = _accelerating_then_stalled(0.31)
+    assert rig.server.controller.v_ref_mps - ref_before <= 1.0 * MAX_CONTROL_STEP_S + 1e-9

@@ -199,6 +199,7 @@ class Monitor:
         self.pedal_sources = pedal_sources
         self.steer_sources = steer_sources
         self.spss_is_command = spss_is_command
+        self._spss_request: tuple[str, str, int] | None = None   # last issued (set_speed runs)
         self.friction = friction
         self.now_s = 0.0
         self.records: dict[str, Violation] = {}
@@ -425,9 +426,18 @@ class Monitor:
             self.source_limits[msg.source] = (msg.speed_mps, self.now_s)
 
     def _issued_spss(self, msg: Any) -> None:
-        if self.spss_is_command:
-            direction = self._gear_direction.get(msg.gear, 0)
-            self._new_command(direction or None)
+        """In set_speed runs an SPSS is a new command when it changes the request (state, gear
+        or fault): the client repeats its request every 100 ms, and a repeat is the old
+        command, which must not move the vehicle after a stop the stack did not ask for (the
+        speed server clears such a stop only on a non-moving request: a change)."""
+        if not self.spss_is_command:
+            return
+        request = (msg.state, msg.gear, msg.fault)
+        if request == self._spss_request:
+            return
+        self._spss_request = request
+        direction = self._gear_direction.get(msg.gear, 0)
+        self._new_command(direction or None)
 
     def _pedals(self, msg: Any) -> None:
         if msg.throttle_pct > 0.0 and msg.brake_pct > 0.0:

@@ -90,7 +90,7 @@ from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, Pla
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
-from overdrive.servers.speed_table import FaultCode, estop_cause
+from overdrive.servers.speed_table import ESTOP_CAUSES, FaultCode, estop_cause
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
@@ -243,6 +243,8 @@ class MoveServer:
         self.status: VehicleStatus | None = None
         self.speed_state: SpeedState | None = None
         self.speed_stop_code = 0   # an e-stop the speed server latched on its own, since last step
+        self.speed_stop_cause = ""   # its name (the interruption's code), since last step
+        self.speed_seen: tuple[float, int] | None = None   # (started_s, unasked_stops) last seen
         self.hold_clear_since_accept = False   # a non-failed direction hold seen since accepted
         self.driving: DrivingStatus | None = None
         self.wheel_mps: float | None = None
@@ -365,16 +367,38 @@ class MoveServer:
             self._finite_sensor(False, "wheel_speed: not finite", out)
 
     def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
+        seen = self.speed_seen
+        if seen is not None and msg.started_s == seen[0] and msg.unasked_stops < seen[1]:
+            return   # older than one already seen (reordered): no news
         last_fault = self.speed_state.fault if self.speed_state is not None else 0
         self.speed_state = msg
-        if msg.estop and estop_cause(msg.estop_code):
-            self.speed_stop_code = msg.estop_code   # any report of the step counts (issue 38)
+        self.speed_seen = (msg.started_s, msg.unasked_stops)
+        if seen is not None and msg.started_s != seen[0]:
+            # a restarted speed server: nothing it latched survived, it may drive the old
+            # command on; a stop the stack did not ask for all the same. Any change counts
+            # (a clock behind the old one's too): a late report of the old server only
+            # interrupts again, the safe side
+            self._speed_stop(0, "restart")
+        elif msg.estop and estop_cause(msg.estop_code):
+            self._speed_stop(msg.estop_code)   # any report of the step counts (issue 38)
         elif msg.fault == FaultCode.ENGINE_STALLED and last_fault != msg.fault:
             # the engine stopped: the server restarts it (seed 001), but the vehicle stopped
             # unasked, so the command in force is discarded like an e-stop's
-            self.speed_stop_code = msg.fault
+            self._speed_stop(msg.fault)
+        elif seen is not None and msg.unasked_stops > seen[1]:
+            # the count rose (by one or more) though no report of the stop itself arrived
+            # (SpeedState is droppable): the stop happened all the same
+            code = msg.fault if msg.fault in ESTOP_CAUSES else 0
+            self._speed_stop(code, "unasked_stop" if not code else "")
         if msg.direction_hold != "failed":
             self.hold_clear_since_accept = True
+
+    def _speed_stop(self, code: int, cause: str = "") -> None:
+        """Note a stop the speed server made on its own (its fault ``code``, 0 if unknown); the
+        first of a step names the interruption (a restart, before the stop it then reports)."""
+        if not self.speed_stop_cause:
+            self.speed_stop_code = code
+            self.speed_stop_cause = cause or estop_cause(code)
 
     def _driving(self, now_s: float, msg: DrivingStatus, out: list) -> None:
         self.driving = msg
@@ -804,14 +828,16 @@ class MoveServer:
         An interruption is the vehicle leaving drive-by-wire or speed control (seed 000), or a
         stop the stack did not ask for: an emergency stop the speed server latched on its own
         (``SpeedState.estop_code`` above the client range: its SPSS watchdog, a sensor or
-        vehicle command timeout, an actuator fault). Either way nothing moves until a new
-        command."""
+        vehicle command timeout, an actuator fault), a rise of ``SpeedState.unasked_stops``
+        whose report was lost, or a restarted speed server (``started_s`` later). Either way
+        nothing moves until a new command."""
         status = self.status
         stop_code, self.speed_stop_code = self.speed_stop_code, 0
+        stop_cause, self.speed_stop_cause = self.speed_stop_cause, ""
         if not self.engaged or self.phase == "estopped" or status is None:
             return False
         mode_ok = status.safety_mode == "drive-by-wire" and status.computer_speed
-        if mode_ok and not stop_code:
+        if mode_ok and not stop_cause:
             return False
         discarded = self.active
         self.active = None
@@ -822,12 +848,14 @@ class MoveServer:
                 else "no command active")
         if mode_ok:
             ss = self.speed_state
-            message = ss.fault_message if ss is not None and ss.fault == stop_code else ""
+            message = (ss.fault_message if ss is not None and stop_code and ss.fault == stop_code
+                       else "")
+            what_stop = (f"speed server emergency stop (fault {stop_code}"
+                         f"{': ' + message if message else ''})" if stop_code
+                         else f"speed server stop ({stop_cause})")
             out.append((Topic.NOTICE, Notice(
-                kind="interrupted", source=SOURCE, code=estop_cause(stop_code),
-                reason=f"speed server emergency stop (fault {stop_code}"
-                       f"{': ' + message if message else ''}): {what}; "
-                       f"nothing moves until a new command")))
+                kind="interrupted", source=SOURCE, code=stop_cause,
+                reason=f"{what_stop}: {what}; nothing moves until a new command")))
             return True
         out.append((Topic.NOTICE, Notice(
             kind="interrupted", source=SOURCE, code=status.safety_mode,

@@ -23,7 +23,13 @@ Decisions the seed leaves open (documented in ``docs/speed-server.md``):
   does not move (paused, idle, parked): a client still asking for ``run`` has not seen the
   stop, so the old command never drives on by itself; a new ``run`` passes the 5 s runwait.
 - The vehicle's own command timeout (``VehicleStatus.command_timeout``: it braked because no
-  pedal command came, the server or its link stalled) is an emergency stop too (fault 1012).
+  pedal command came, the server or its link stalled) is an emergency stop too (fault 1012;
+  simulation only: JAUS does not carry it, an XGV's own 0.5 s timeout acts unreported).
+- The latest unasked cause names a latched e-stop; a client's fault code is confined to
+  1..999 (it asked for the stop, whatever its code).
+- ``SpeedState.unasked_stops`` counts the stops made on the server's own (never reset) and
+  ``started_s`` is its first step: a client that lost every report of a stop, or talks to a
+  restarted server with no latch, latches on a rise of the one or a change of the other.
 - A stall is not one long step: the controllers integrate at most ``MAX_CONTROL_STEP_S`` per
   step, and after a gap the first throttle is no more than the one before it (the loop is
   reset to it, so its integrator holds), rising from there at the loop's own slew rate.
@@ -190,7 +196,8 @@ class SpeedServer:
         self.client_fault = 0
         self.estop_reason = ""
         self.estop_code = 0      # the fault code that latched the e-stop (SpeedState.estop_code)
-        self.estop_since_s = -math.inf   # when it was latched
+        self.estop_since_s = -math.inf   # when it was latched (by its latest unasked cause)
+        self.unasked_stops = 0   # SpeedState.unasked_stops: never reset within this process
         self.fault = 0
         self.fault_message = ""
         self.fault_since_s = -math.inf
@@ -250,7 +257,7 @@ class SpeedServer:
             self._enter(now_s, new_state, event, out)
 
         self.hold_command = None
-        pedals, powertrain = self._actuators(control_dt_s)
+        pedals, powertrain = self._actuators(control_dt_s, dt_s)
         pedals = self._after_gap(pedals)
         self.pedals = pedals
         self._hold_notices(now_s, out)
@@ -388,7 +395,10 @@ class SpeedServer:
                     code, field="fault", value=spss.fault, low=0, high=CLIENT_FAULT_MAX)
                     + "; stopping anyway")
                 self._raise_fault(now_s, int(code), message, out)
-                self._estop(f"client fault {spss.fault}", out, spss.fault)
+                # confined to the clients' range: an out-of-range code is still the client's
+                # own stop (it asked), never one of the server's (an unasked stop)
+                self._estop(f"client fault {spss.fault}", out,
+                            min(max(spss.fault, 1), CLIENT_FAULT_MAX))
             return new
         self.client_fault = 0
         invalid = self._validate(spss)
@@ -487,8 +497,15 @@ class SpeedServer:
                                          reason=message)))
 
     def _estop(self, reason: str, out: list, code: int) -> None:
-        if not self.estop_reason:
-            self.estop_code = code   # the first cause names the stop while it is latched
+        """Latch an e-stop. A stop of the server's own (code above the clients') is counted
+        and names the stop from then on, over any earlier cause: the latest unasked cause is
+        the one a clearing request must have been sent after. A client's code names it only
+        when nothing else latched it."""
+        unasked = code > CLIENT_FAULT_MAX
+        if unasked:
+            self.unasked_stops += 1
+        if unasked or not self.estop_reason:
+            self.estop_code = code
             self.estop_since_s = self.last_now_s if self.last_now_s is not None else 0.0
         self.estop_reason = reason
         out.append((Topic.NOTICE, Notice(kind="estop", source=SOURCE, code=str(code),
@@ -608,6 +625,7 @@ class SpeedServer:
         if event == "pause_timeout":
             self.goal, self.auto_parked = "parked", True
         elif event == "stalled" and not self.engine_cut:
+            self.unasked_stops += 1   # no e-stop (the engine restarts) but a stop all the same
             self._raise_fault(now_s, FaultCode.ENGINE_STALLED,
                               fault_message(FaultCode.ENGINE_STALLED, state=old), out)
         elif event == "shift_failed":
@@ -629,7 +647,10 @@ class SpeedServer:
 
     # ------------------------------------------------------------------ outputs
 
-    def _actuators(self, dt_s: float) -> tuple[PedalCommand, PowertrainCommand]:
+    def _actuators(self, dt_s: float, elapsed_s: float) -> tuple[PedalCommand, PowertrainCommand]:
+        """This period's pedals and powertrain. ``dt_s``: the bounded step the controllers
+        integrate; ``elapsed_s``: the real time since the last step, which the direction hold
+        measures with (a rollback during a stall is travel all the same)."""
         p = self.params
         row = STATE_TABLE[self.state]
         state = self.state
@@ -672,7 +693,7 @@ class SpeedServer:
         result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g, sin_pitch, gear,
                                       self.stopped)
         hold = self.hold_command = self.direction_hold.step(
-            dt_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
+            elapsed_s, target_mps=target, speed_mps=v_g, stopped=self.stopped, sin_pitch=sin_pitch,
             throttle_pct=status.throttle_pct, gear=gear,
             source_speeds_mps=self._source_speeds_mps(direction))
         if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
@@ -750,6 +771,7 @@ class SpeedServer:
             state=self.state, fault=fault, fault_message=fault_message,
             hint=self.hint, estop=self.latched,  # type: ignore[arg-type]
             estop_code=self.estop_code if self.latched else 0,
+            unasked_stops=self.unasked_stops, started_s=self.first_step_s,
             direction_hold=self.direction_hold.state,  # type: ignore[arg-type]
         )
 

@@ -239,7 +239,7 @@ class FaultCode(enum.IntEnum):
     ENGINE_STALLED = 1009
     SHIFT_FAILED = 1010
     SENSOR_TIMEOUT = 1011
-    VEHICLE_TIMEOUT = 1012
+    VEHICLE_TIMEOUT = 1012   # simulation only: JAUS does not report the vehicle's timeout brake
 
 
 CLIENT_FAULT_MAX: Final = 999
