@@ -163,6 +163,8 @@ CONTROL_QUERIES_UNANSWERED: Final = 20  # this many in a row unanswered (4 s, un
                                      # with (1-p)^2: at 5 % 20 lost in a row is 6e-21 (3 at
                                      # 1 Hz, as before, tripped 3 times an hour); another
                                      # controller is named by the first answer that arrives
+TIME_EPS_S: Final = 1e-6             # float noise in times summed from 10 ms ticks: a query
+                                     # due at 0.6000000001 goes out at 0.6, not a tick late
 MAX_WATCHERS: Final = 4              # components watching our status (the PD, the MPD)
 CLIENT_NAME: Final = "overdrive XGV client"   # Report Identification texts (ours)
 NODE_NAME: Final = "overdrive"
@@ -749,11 +751,11 @@ class XgvClient:
                         presence_vector=_every_field(code)), component,
                         service_connection=True))
                     self.next_create_s[code] = now_s + cfg.retry_s
-            if (self.heartbeat_s is not None and now_s >= self.next_heartbeat_query_s
+            if (self.heartbeat_s is not None and now_s >= self.next_heartbeat_query_s - TIME_EPS_S
                     and now_s - self.heartbeat_s >= HEARTBEAT_QUERY_AFTER_S):
                 messages.append(self._to(QueryHeartbeatPulse(), self.node_manager))
                 self.next_heartbeat_query_s = now_s + HEARTBEAT_QUERY_PERIOD_S
-            if self.control and now_s >= self.next_control_query_s:
+            if self.control and now_s >= self.next_control_query_s - TIME_EPS_S:
                 messages.extend(self._query_control(now_s))
             if not self.control and now_s >= self.next_request_s:
                 messages.append(self._to(RequestComponentControl(authority=cfg.authority),
