@@ -8,10 +8,13 @@ The MOVE: 60 m at 8 m/s from rest; the loss starts once the link is up (0.4 s).
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import pytest
 
+from overdrive.jaus import JausId, QueryHeartbeatPulse, ReportHeartbeatPulse
+from overdrive.messages import Topic
 from overdrive.run.compose import build_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import ScenarioError, parse_scenario
@@ -20,11 +23,14 @@ from overdrive.vehicle.xgv_client import (
     CONTROL_QUERIES_UNANSWERED,
     CONTROL_QUERY_PERIOD_S,
     FALSE_TRIP_PER_HOUR_BOUND,
+    HEARTBEAT_QUERY_AFTER_S,
+    HEARTBEAT_QUERY_PERIOD_S,
     HEARTBEAT_TIMEOUT_S,
     LOSS_DESIGN,
     XgvClientConfig,
     false_trips_per_hour,
 )
+from tests.xgv.test_xgv_plain_profile import controlling, deliver, sent
 
 MOVE_M = 60.0
 LIMIT_MPS = 8.0
@@ -105,6 +111,50 @@ def test_a_seeded_loss_repeats_exactly() -> None:
     again = run(events, duration_s=3.0)
     assert first[1].link.faults.counts == again[1].link.faults.counts
     assert first[2] == again[2]
+
+
+# ----------------------------------------------------------------------------- the heartbeat
+
+XGV_NM = JausId(1, 1, 1, 1)
+
+
+def heartbeats(beats_s: set[float], end_s: float, *,
+               answered: bool) -> tuple[list[float], list[float]]:
+    """The client (link up, in control at 0 s) stepped every 10 ms; unprompted heartbeats at
+    ``beats_s``, its Query Heartbeat Pulse answered or not. When it queried, when it faulted."""
+    client = controlling()
+    queries: list[float] = []
+    faults: list[float] = []
+    t = 0.01
+    while t < end_s:
+        if round(t, 2) in beats_s:
+            deliver(client, ReportHeartbeatPulse(), XGV_NM, t)
+        if any(isinstance(m, QueryHeartbeatPulse) for m in sent(client, t)):
+            queries.append(t)
+            if answered:
+                deliver(client, ReportHeartbeatPulse(), XGV_NM, t)
+        faults += [t for topic, n in client.sensor_outputs(t)
+                   if topic == Topic.NOTICE and n.code == "xgv_heartbeat"]
+        t = round(t + 0.01, 6)
+    return queries, faults
+
+
+def test_three_heartbeats_lost_in_a_row_are_no_fault() -> None:
+    _, faults = heartbeats({4.0, 5.0, 6.0, 7.0}, 8.0, answered=False)
+    assert faults == []
+
+
+def test_a_heartbeat_missing_for_the_timeout_is_a_fault_and_is_asked_for_before() -> None:
+    queries, faults = heartbeats(set(), 6.0, answered=False)
+    assert queries[0] == pytest.approx(HEARTBEAT_QUERY_AFTER_S, abs=0.011)
+    gaps = [b - a for a, b in itertools.pairwise(queries) if b <= HEARTBEAT_TIMEOUT_S]
+    assert gaps and all(g == pytest.approx(HEARTBEAT_QUERY_PERIOD_S, abs=0.011) for g in gaps)
+    assert faults and faults[0] == pytest.approx(HEARTBEAT_TIMEOUT_S, abs=0.011)
+
+
+def test_answered_queries_keep_the_link_when_every_unprompted_heartbeat_is_lost() -> None:
+    _, faults = heartbeats(set(), 10.0, answered=True)
+    assert faults == []
 
 
 # ----------------------------------------------------------------------------- loss
