@@ -64,8 +64,9 @@ def link_proxy(listen: str, to: str, upstream: str, loss: float, delay_ms: float
                                _address(upstream, "--from"))
     try:
         proxy = LinkProxy(listen_at, target, spec, bind)
-    except OSError as exc:
-        raise click.UsageError(f"cannot bind: {exc.strerror or exc}") from None
+    except OSError as exc:   # a port in use, an address not ours, a name that does not resolve
+        raise click.UsageError(f"--listen {listen} / --to {to} / --from {upstream}: "
+                               f"{exc.strerror or exc}") from None
     with proxy:
         host, port = proxy.address
         click.echo(f"link-proxy: {host}:{port} -> {target[0]}:{target[1]} (loss {loss}, delay "

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import heapq
 import select
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -35,8 +36,8 @@ class LinkProxy:
 
     def __init__(self, listen: Address, to: Address, spec: LinkFaultSpec,
                  upstream_bind: Address = ("0.0.0.0", 0)) -> None:
-        self.to = to
-        self.spec = spec
+        self.to = (socket.gethostbyname(to[0]), to[1])   # resolved once: replies are
+        self.spec = spec                                  # matched against the address
         self.faults = {"to-vehicle": LinkFaults(spec, "to-vehicle"),
                        "from-vehicle": LinkFaults(spec, "from-vehicle")}
         self.listen_sock = open_udp(listen, receive_buffer_bytes=SOCKET_BUFFER_BYTES)
