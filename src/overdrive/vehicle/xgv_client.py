@@ -142,7 +142,7 @@ REGISTRATION_SETTLE_S: Final = NM_HEARTBEAT_PERIOD_S   # and just after it asked
 # Loss tolerance (docs/xgv.md, "A lossy link"). Loss model: each datagram lost independently
 # with probability p; design point p = LOSS_DESIGN = 5 %, a false trip (no loss of link or of
 # control, only lost datagrams) below FALSE_TRIP_PER_HOUR_BOUND per hour at that point
-# (``false_trips_per_hour``; tests/xgv/test_xgv_link_loss.py computes and samples it).
+# (``false_trips_per_hour``; tests/xgv/test_xgv_link_loss.py holds the constants to it).
 LOSS_DESIGN: Final = 0.05
 FALSE_TRIP_PER_HOUR_BOUND: Final = 1e-4
 HEARTBEAT_PERIOD_S: Final = 1.0      # reference §2: the XGV's unprompted heartbeat, ~1 Hz
@@ -155,7 +155,7 @@ HEARTBEAT_TIMEOUT_S: Final = (HEARTBEATS_MISSED + 0.5) * HEARTBEAT_PERIOD_S   # 
                                      # so the client forgets the session before the XGV does
 HEARTBEAT_QUERY_AFTER_S: Final = 1.25 * HEARTBEAT_PERIOD_S   # a heartbeat this late is asked
 HEARTBEAT_QUERY_PERIOD_S: Final = 0.25   # for (Query Heartbeat Pulse) every this; any answer
-                                     # counts: 12 more chances before the timeout at 4.5 s
+                                     # counts: 13 more chances before the timeout at 4.5 s
 CONTROL_QUERY_PERIOD_S: Final = 0.2  # Query Component Control while we hold control: a lost
                                      # Reject is found within this and one answer
 CONTROL_QUERIES_UNANSWERED: Final = 20  # this many in a row unanswered (4 s, under the
