@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from overdrive.bus.faults import ChannelFaults
 from overdrive.jaus import JausId, QueryHeartbeatPulse, ReportHeartbeatPulse
 from overdrive.messages import Topic
 from overdrive.run.compose import build_nodes
@@ -103,6 +104,24 @@ def test_a_loss_event_outside_0_to_1_is_refused(fraction: Any) -> None:
     with pytest.raises(ScenarioError, match="fraction"):
         scenario([{"at_s": 1.0, "loss": {"channel": "jaus", "for_s": 1.0,
                                          "fraction": fraction}}])
+
+
+def delivered(seed: int) -> list[int]:
+    faults = ChannelFaults(seed=seed)
+    faults.add("gps", "loss", 1.0, 2.0, fraction=0.3)
+    got = []
+    for i in range(400):
+        faults.now_s = i * 0.01
+        got += faults.route(Topic.GPS_INS, i)
+    return got
+
+
+def test_a_loss_window_loses_about_its_fraction_inside_only_and_repeats_with_the_seed() -> None:
+    got = delivered(5)
+    assert got == delivered(5) and got != delivered(6)
+    assert set(range(100)) <= set(got) and set(range(300, 400)) <= set(got)
+    lost = 200 - len([i for i in got if 100 <= i < 300])
+    assert 40 <= lost <= 80            # 30 % of 200, within 3.1 standard deviations
 
 
 def test_a_seeded_loss_repeats_exactly() -> None:
