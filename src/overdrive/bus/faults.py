@@ -1,13 +1,16 @@
-"""Channel fault injection for scenarios: drop, delay, duplicate and reorder on a channel.
+"""Channel fault injection for scenarios: drop, loss, delay, duplicate and reorder on a channel.
 
 A ``ChannelFaults`` is the bus's channel model. Each scenario fault opens a window on a
-channel (a group of topics); a message published inside the window is dropped, held for
-``delay_s``, delivered twice, or swapped with the next message on the same topic. The clock is
-the runner's: it sets ``now_s`` before every tick.
+channel (a group of topics); a message published inside the window is dropped, dropped with
+probability ``fraction`` (``loss``: each message independently, drawn from a generator seeded
+with the run's seed, so a run repeats exactly), held for ``delay_s``, delivered twice, or
+swapped with the next message on the same topic. The clock is the runner's: it sets ``now_s``
+before every tick.
 """
 
 from __future__ import annotations
 
+import random
 from collections.abc import Sequence
 from typing import Any
 
@@ -31,31 +34,40 @@ CHANNEL_TOPICS: dict[str, tuple[str, ...]] = {
 }
 """Scenario channel names -> bus topics."""
 
-FAULT_KINDS = ("drop", "delay", "duplicate", "reorder")
+FAULT_KINDS = ("drop", "loss", "delay", "duplicate", "reorder")
 
 
 class Window:
-    __slots__ = ("delay_s", "end_s", "kind", "start_s")
+    __slots__ = ("delay_s", "end_s", "fraction", "kind", "start_s")
 
-    def __init__(self, kind: str, start_s: float, end_s: float, delay_s: float = 0.0) -> None:
+    def __init__(self, kind: str, start_s: float, end_s: float, delay_s: float = 0.0,
+                 fraction: float = 1.0) -> None:
+        if kind not in FAULT_KINDS:
+            raise ValueError(f"channel fault kind: one of {FAULT_KINDS}, got {kind!r}")
+        if not 0.0 <= fraction <= 1.0:   # also refuses NaN
+            raise ValueError(f"loss fraction: in [0, 1], got {fraction!r}")
         self.kind, self.start_s, self.end_s, self.delay_s = kind, start_s, end_s, delay_s
+        self.fraction = fraction
 
     def open_at(self, now_s: float) -> bool:
         return self.start_s - EPS_S <= now_s < self.end_s - EPS_S
 
 
 class ChannelFaults:
-    def __init__(self, windows: dict[str, list[Window]] | None = None) -> None:
+    def __init__(self, windows: dict[str, list[Window]] | None = None, seed: int = 0) -> None:
         self.now_s = 0.0
+        self.rng = random.Random(seed)   # loss draws only: other kinds never consume it
         self.windows: dict[str, list[Window]] = windows or {}
         self.held: list[tuple[float, int, str, Any]] = []   # (release time, order, topic, msg)
         self.reorder_slot: dict[str, tuple[Any, float]] = {}   # topic -> (held message, window end)
         self.counts = dict.fromkeys(FAULT_KINDS, 0)
         self._order = 0
 
-    def add(self, channel: str, kind: str, start_s: float, for_s: float, delay_s: float = 0.0) -> None:
+    def add(self, channel: str, kind: str, start_s: float, for_s: float, delay_s: float = 0.0,
+            fraction: float = 1.0) -> None:
         for topic in CHANNEL_TOPICS[channel]:
-            self.windows.setdefault(topic, []).append(Window(kind, start_s, start_s + for_s, delay_s))
+            self.windows.setdefault(topic, []).append(
+                Window(kind, start_s, start_s + for_s, delay_s, fraction))
 
     def route(self, topic: str, msg: Any) -> Sequence[Any]:
         windows = self.windows.get(topic)
@@ -70,6 +82,11 @@ class ChannelFaults:
         return (msg,)
 
     def _apply(self, window: Window, topic: str, msg: Any) -> Sequence[Any]:
+        if window.kind == "loss":
+            if self.rng.random() >= window.fraction:
+                return (msg,)
+            self.counts["loss"] += 1
+            return ()
         self.counts[window.kind] += 1
         if window.kind == "drop":
             return ()

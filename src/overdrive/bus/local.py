@@ -2,7 +2,7 @@
 
 Delivery is synchronous and ordered: a message published during a tick is in every
 subscriber's inbox at once, so a node stepped later in the same tick sees it. A channel model
-(scenario fault injection: drop, delay, duplicate, reorder) may sit between publisher and
+(scenario fault injection: drop, loss, delay, duplicate, reorder) may sit between publisher and
 subscribers, so no node knows about faults.
 """
 

@@ -16,6 +16,7 @@ import msgspec
 from overdrive import __version__
 from overdrive.cli.bus import echo, launch, node, pub
 from overdrive.cli.jaus import jaus
+from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
 from overdrive.cli.summary import print_summary
 
@@ -197,9 +198,13 @@ def _host_port(text: str, default_port: int, what: str) -> tuple[str, int]:
                    "datagram received).")
 @click.option("--duration-s", type=click.FloatRange(0.0, 86_400.0, min_open=True),
               help="Stop after this long (default: run until interrupted).")
-def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | None) -> None:
+@click.option("--truth", "truth_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the simulated vehicle's own state after every 10 ms step to this CSV "
+                   "(t_s, scenario_s, x_m, y_m, speed_mps): ground truth to judge a run by.")
+def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | None,
+            truth_path: Path | None) -> None:
     """A simulated ByWire XGV speaking JAUS 3.3 over JUDP/UDP, in wall-clock time."""
-    from overdrive.run.xgv_sim import XgvServer
+    from overdrive.run.xgv_sim import TRUTH_HEADER, XgvServer
     from overdrive.scenario.schema import ScenarioError, load_scenario
 
     loaded = None
@@ -213,11 +218,19 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
     except OSError as exc:
         fail_usage(f"cannot bind {host}:{port}: {exc.strerror or exc}")
         return
-    with server:
+    try:
+        truth = truth_path.open("w", encoding="utf-8", buffering=1) if truth_path is not None else None
+    except OSError as exc:
+        server.close()
+        fail_usage(f"--truth {truth_path}: {exc.strerror or exc}")
+        return
+    with server, truth or contextlib.nullcontext():
+        if truth is not None:
+            truth.write(TRUTH_HEADER + "\n")
         bound = server.address
         click.echo(f"xgv-sim: JAUS/JUDP on {bound[0]}:{bound[1]} (subsystem 1, node 1)", err=True)
         with contextlib.suppress(KeyboardInterrupt):
-            server.serve(duration_s)
+            server.serve(duration_s, truth=truth)
     click.echo(f"xgv-sim: {server.simulator.stats}, dropped over input bounds "
                f"{server.admission.dropped}", err=True)
 
@@ -281,7 +294,7 @@ def bench() -> None:
 
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
-    for command in (*COMMANDS, jaus, node, launch, pub, echo):
+    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo):
         main.add_command(command)
 
 

@@ -90,13 +90,15 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
     return nodes
 
 
-def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float]]:
-    """The scenario's faults on channel ``jaus``: (kind, start, duration, delay)."""
+def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float, float]]:
+    """The scenario's faults on channel ``jaus``: (kind, start, duration, delay, fraction)."""
     found = []
     for event in scenario.events:
         body = event.body
-        if event.kind in ("drop", "delay", "duplicate", "reorder") and body.channel == "jaus":
-            found.append((event.kind, event.at_s, body.for_s, getattr(body, "delay_s", 0.0)))
+        if (event.kind in ("drop", "loss", "delay", "duplicate", "reorder")
+                and body.channel == "jaus"):
+            found.append((event.kind, event.at_s, body.for_s, getattr(body, "delay_s", 0.0),
+                          getattr(body, "fraction", 1.0)))
     return found
 
 
@@ -116,7 +118,7 @@ def lockstep_nodes(scenario: Scenario, servers: Sequence[Any],
     (``profile="plain"``: the client reads the simulated XGV as a plain JAUS vehicle)."""
     spec = scenario.spec
     transport: Literal["udp", "memory"] = "udp" if spec.interface == "jaus" else "memory"
-    link = LoopbackLink(transport, jaus_faults(scenario))
+    link = LoopbackLink(transport, jaus_faults(scenario), seed=spec.seed)
     simulator = XgvSimulator(scenario.vehicle, world_from_spec(spec.world), spec.seed,
                              ready=spec.start == "ready")
     control = "motion-profile" if spec.control == "motion-profile" else "wrench"

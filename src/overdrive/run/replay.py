@@ -4,7 +4,7 @@
 speed server: whichever ``overdrive.run.compose.build_nodes`` makes for the recorded scenario, so with
 the same vehicle parameters), replaces the vehicle and the scenario player by playback of the
 messages they published, steps everything on the lock-step runtime in the recorded tick order
-(with the scenario's channel faults, drop/delay/duplicate/reorder, re-applied on the bus), and compares each server's
+(with the scenario's channel faults, drop/loss/delay/duplicate/reorder, re-applied on the bus), and compares each server's
 outputs, tick by tick and message by message, with the recorded ones.
 
 The closed loop is open during replay: the vehicle does not react to the replayed commands.

@@ -37,7 +37,7 @@ from overdrive.scenario.schema import (
 from overdrive.scenario.vehicles import names_a_file
 
 JITTERED_KINDS = frozenset({
-    "drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
+    "drop", "loss", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
     "manual_override", "emergency_manual_override", "estop_button", "internal_error", "door",
     "world",
 })

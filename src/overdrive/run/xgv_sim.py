@@ -22,7 +22,7 @@ import select
 import threading
 import time
 from collections.abc import Callable
-from typing import Final
+from typing import Final, TextIO
 
 from overdrive.jaus.judp import JUDP_PORT
 from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
@@ -45,6 +45,7 @@ MAX_UNTRUSTED_PER_TICK: Final = 20      # ~0.5 ms of decoding per tick for every
 READ_CHUNK: Final = 64
 
 Datagram = tuple[bytes, tuple[str, int]]
+TRUTH_HEADER: Final = "t_s,scenario_s,x_m,y_m,speed_mps"   # scenario_s empty before the first datagram
 
 
 class Admission:
@@ -139,8 +140,10 @@ class XgvServer:
         return batch
 
     def serve(self, duration_s: float | None = None,
-              clock: Callable[[], float] = time.monotonic) -> None:
-        """Step every ``PERIOD_S`` and answer datagrams as they come, until stopped."""
+              clock: Callable[[], float] = time.monotonic, truth: TextIO | None = None) -> None:
+        """Step every ``PERIOD_S`` and answer datagrams as they come, until stopped. ``truth``:
+        the simulated vehicle's own state after every step, as CSV (``TRUTH_HEADER``), so a
+        run over a real link can be judged from ground truth (``xgv-sim --truth``)."""
         sim = self.simulator
         start = clock()
         scenario_start: float | None = None
@@ -163,8 +166,18 @@ class XgvServer:
             if self.player is not None and scenario_start is not None:
                 self._play(now - scenario_start)
             self._send(sim.step(now))
+            if truth is not None:
+                self._write_truth(truth, now, scenario_start)
             self.admission.new_tick()
             tick = max(tick + 1, int(now / PERIOD_S))
+
+    def _write_truth(self, out: TextIO, now_s: float, scenario_start: float | None) -> None:
+        state = self.simulator.latest.get(Topic.TRUTH)
+        if state is None:
+            return
+        scenario_s = "" if scenario_start is None else f"{now_s - scenario_start:.4f}"
+        out.write(f"{now_s:.4f},{scenario_s},{state.x_m:.4f},{state.y_m:.4f},"
+                  f"{state.speed_mps:.4f}\n")
 
     def _play(self, scenario_s: float) -> None:
         assert self.player is not None
@@ -179,4 +192,4 @@ class XgvServer:
                 self.simulator.apply_fault(msg)
 
 
-__all__ = ["XgvServer"]
+__all__ = ["TRUTH_HEADER", "XgvServer"]

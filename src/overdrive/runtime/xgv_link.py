@@ -9,7 +9,8 @@ this module carries their datagrams and puts them on the bus:
   ``control: motion-profile``). Runs stay deterministic: each end drains exactly the datagrams
   the other sent (waiting for loopback delivery if needed), so nothing depends on timing, and
   takes datagrams only from the other end's address (others are dropped and counted). The
-  scenario's faults on channel ``jaus`` (drop, delay, duplicate, reorder) act on the datagrams.
+  scenario's faults on channel ``jaus`` (drop, loss, delay, duplicate, reorder) act on the
+  datagrams, in both directions (loss drawn from the scenario's seed).
 - ``UdpPort``: one non-blocking socket towards a remote XGV (``overdrive drive``).
 - Nodes, in tick order: ``XgvSimNode`` ("xgv": the simulated XGV; it also publishes what an
   XGV does not report over JAUS: the simulator's ground truth and the forward radar, an
@@ -47,13 +48,15 @@ class LoopbackLink:
     """Both ends of the JAUS link of one lock-step run (see the module docstring)."""
 
     def __init__(self, transport: Literal["udp", "memory"] = "udp",
-                 faults: Sequence[tuple[str, float, float, float]] = ()) -> None:
+                 faults: Sequence[tuple[str, float, float, float]
+                                  | tuple[str, float, float, float, float]] = (),
+                 seed: int = 0) -> None:
         self.transport = transport
-        self.faults = ChannelFaults()
-        for kind, start_s, for_s, delay_s in faults:
+        self.faults = ChannelFaults(seed=seed)   # (kind, start, duration, delay[, fraction])
+        for kind, start_s, for_s, delay_s, *fraction in faults:
             for side in _TO:
                 self.faults.windows.setdefault(f"jaus>{side}", []).append(
-                    Window(kind, start_s, start_s + for_s, delay_s))
+                    Window(kind, start_s, start_s + for_s, delay_s, *fraction))
         self.sockets: dict[str, socket.socket] = {}
         self.addresses: dict[str, Address] = {"xgv": ("memory", 1), "client": ("memory", 2)}
         self.queues: dict[str, list[tuple[bytes, Address]]] = {"xgv": [], "client": []}

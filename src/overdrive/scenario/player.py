@@ -51,11 +51,15 @@ def world_from_spec(spec: Any) -> World:
 
 
 def channel_faults(scenario: Scenario) -> ChannelFaults:
-    """The bus channel model for the scenario's drop/delay/duplicate/reorder events."""
-    faults = ChannelFaults()
+    """The bus channel model for the scenario's drop/loss/delay/duplicate/reorder events
+    (loss drawn from the scenario's seed)."""
+    faults = ChannelFaults(seed=scenario.spec.seed)
     for event in scenario.events:
         if event.kind in ("drop", "duplicate", "reorder"):
             faults.add(event.body.channel, event.kind, event.at_s, event.body.for_s)
+        elif event.kind == "loss":
+            faults.add(event.body.channel, "loss", event.at_s, event.body.for_s,
+                       fraction=event.body.fraction)
         elif event.kind == "delay":
             faults.add(event.body.channel, "delay", event.at_s, event.body.for_s, event.body.delay_s)
     return faults
@@ -215,5 +219,5 @@ class ScenarioPlayer:
                 changes_w["obstacles"] = tuple((o.x_m, o.y_m) for o in body.obstacles)
             self.world = msgspec.structs.replace(self.world, **changes_w)
             out.append((SIM_WORLD_TOPIC, self.world))
-        # drop, delay, duplicate and reorder are applied by ChannelFaults on the bus; stall by
+        # drop, loss, delay, duplicate and reorder are applied by ChannelFaults on the bus; stall by
         # the runtime (stall_windows)

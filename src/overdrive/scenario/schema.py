@@ -127,6 +127,15 @@ class DelaySpec(Spec, frozen=True):
     delay_s: Annotated[float, msgspec.Meta(gt=0.0, le=60.0)]
 
 
+class LossSpec(Spec, frozen=True):
+    """Each message on the channel lost independently with probability ``fraction`` for
+    ``for_s`` (drawn from the scenario's seed: a run repeats exactly)."""
+
+    channel: Channel
+    for_s: Duration
+    fraction: Annotated[float, msgspec.Meta(gt=0.0, le=1.0)]
+
+
 class SensorFaultSpec(Spec, frozen=True):
     name: Literal["gps", "imu", "wheel_speed", "radar"]
     fault: Literal["freeze", "noise", "dropout"]
@@ -211,6 +220,7 @@ class EventSpec(Spec, frozen=True):
     door: Literal["open", "closed"] | None = None
     partial_mode: Literal["full", "manual-steering", "manual-speed"] | None = None
     drop: DropSpec | None = None
+    loss: LossSpec | None = None
     delay: DelaySpec | None = None
     duplicate: DropSpec | None = None
     reorder: DropSpec | None = None

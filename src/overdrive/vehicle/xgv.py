@@ -142,7 +142,9 @@ MAX_REPORT_RATE_HZ: Final = 100.0      # the simulator steps at 100 Hz: faster i
 STEP_TOLERANCE_S: Final = 0.005        # half the 10 ms step (xgv_sim.PERIOD_S): a report due
                                        # within it goes out in this step
 COMMAND_TIMEOUT_S: Final = 0.5         # wrench mode: no Set Wrench Effort for this long -> error pause
-                                       # (a dead client must not leave the throttle open; our choice)
+                                       # (a dead client must not leave the throttle open; our choice);
+                                       # 50 periods of the client's 100 Hz: no false trip at any
+                                       # loss up to 50 % (p^50; docs/xgv.md, "A lossy link")
 LAPSE_DECEL_MPS2: Final = PAUSE_DECEL_MPS2  # a lapsed motion profile stops like a pause (seed 000)
 MPD_HOLD_BRAKE_PCT: Final = 50.0       # MPD at a standstill: seed 000's 50 % holding brake
 SPEED_DEADBAND_MPS: Final = 0.005     # a few steps of the u16 speed field (0.002 m/s, reference §6)
@@ -159,7 +161,9 @@ MAX_MESSAGES_PER_DATAGRAM: Final = 8  # reference §2: "one public XGV client pa
 MAX_CONNECTIONS_PER_PEER: Final = 16   # one client: the overdrive client opens 6, ojcmpt 3
 PEER_TIMEOUT_S: Final = 5.0            # a peer silent this long (5 heartbeat periods, reference
                                        # §2) loses its service connections and control, and its
-                                       # id is free to come back from another address
+                                       # id is free to come back from another address (500 of
+                                       # the client's 100 Hz datagrams: loss never trips it; the
+                                       # client's own heartbeat timeout, 4.5 s, is shorter)
 ORIGIN_DEG: Final = (37.2296, -80.4139)  # Global Pose datum (Blacksburg, VA); any point works
 POSITION_RMS_M: Final = 0.02           # reported accuracy: the preset's RTK-grade GPS noise
 ATTITUDE_RMS_RAD: Final = 0.002

@@ -139,11 +139,32 @@ REGISTRATION_GRACE_S: Final = 3.0    # a Reject this soon after the link came up
 REGISTRATION_SETTLE_S: Final = NM_HEARTBEAT_PERIOD_S   # and just after it asked, before
                                      # our answer reached its system tree (seen: a Reject
                                      # 30 ms in, after the query): one of our heartbeat periods
-CONTROL_QUERY_PERIOD_S: Final = 1.0  # Query Component Control while we hold control: a lost
-                                     # Reject is found within this (issue 19 review)
-CONTROL_QUERIES_UNANSWERED: Final = 3   # this many in a row unanswered: control lost (one
-                                     # lost datagram each way is not; a dead link is the
-                                     # heartbeat's, 1.5 s)
+# Loss tolerance (docs/xgv.md, "A lossy link"). Loss model: each datagram lost independently
+# with probability p; design point p = LOSS_DESIGN = 5 %, a false trip (no loss of link or of
+# control, only lost datagrams) below FALSE_TRIP_PER_HOUR_BOUND per hour at that point
+# (``false_trips_per_hour``; tests/xgv/test_xgv_link_loss.py holds the constants to it).
+LOSS_DESIGN: Final = 0.05
+FALSE_TRIP_PER_HOUR_BOUND: Final = 1e-4
+HEARTBEAT_PERIOD_S: Final = 1.0      # reference §2: the XGV's unprompted heartbeat, ~1 Hz
+HEARTBEATS_MISSED: Final = 4         # this many periods without one (and half a period of
+                                     # jitter) is a lost link: p^4 = 6e-6 per period at 5 %,
+                                     # 0.02 false trips an hour from the 1 Hz heartbeat alone,
+                                     # so an overdue heartbeat is also asked for (below)
+HEARTBEAT_TIMEOUT_S: Final = (HEARTBEATS_MISSED + 0.5) * HEARTBEAT_PERIOD_S   # 4.5 s: under
+                                     # the simulated XGV's 5 s peer timeout (xgv.PEER_TIMEOUT_S),
+                                     # so the client forgets the session before the XGV does
+HEARTBEAT_QUERY_AFTER_S: Final = 1.25 * HEARTBEAT_PERIOD_S   # a heartbeat this late is asked
+HEARTBEAT_QUERY_PERIOD_S: Final = 0.25   # for (Query Heartbeat Pulse) every this; any answer
+                                     # counts: 13 more chances before the timeout at 4.5 s
+CONTROL_QUERY_PERIOD_S: Final = 0.2  # Query Component Control while we hold control: a lost
+                                     # Reject is found within this and one answer
+CONTROL_QUERIES_UNANSWERED: Final = 20  # this many in a row unanswered (4 s, under the
+                                     # heartbeat's 4.5 s): control lost. A query is answered
+                                     # with (1-p)^2: at 5 % 20 lost in a row is 6e-21 (3 at
+                                     # 1 Hz, as before, tripped 3 times an hour); another
+                                     # controller is named by the first answer that arrives
+TIME_EPS_S: Final = 1e-6             # float noise in times summed from 10 ms ticks: a query
+                                     # due at 0.6000000001 goes out at 0.6, not a tick late
 MAX_WATCHERS: Final = 4              # components watching our status (the PD, the MPD)
 CLIENT_NAME: Final = "overdrive XGV client"   # Report Identification texts (ours)
 NODE_NAME: Final = "overdrive"
@@ -180,7 +201,7 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
     xgv_node: int = 1
     authority: int = 6                    # reference §7: "authority 6"
     report_rate_hz: float = 100.0         # service connections: the stack's 10 ms period
-    heartbeat_timeout_s: float = 1.5      # 1.5 heartbeat periods (reference §2: ~1 Hz)
+    heartbeat_timeout_s: float = HEARTBEAT_TIMEOUT_S   # no heartbeat this long: link lost
     retry_s: float = 0.5                  # requests and queries not answered are repeated
     discrete_refresh_s: float = 0.5       # Set Discrete Devices repeated (a lost one heals)
     motion_duration_s: float = 0.4        # reference §6: "clients send 400 ms and refresh it"
@@ -195,6 +216,39 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
                                           # read them all (OpenJAUS keeps the first only)
     node_manager: bool = True             # be our node's node manager (docs/xgv.md): OpenJAUS
                                           # keeps a controller only if its system tree has it
+
+    def __post_init__(self) -> None:
+        for name in ("heartbeat_timeout_s", "retry_s", "discrete_refresh_s", "report_rate_hz",
+                     "motion_duration_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"XgvClientConfig.{name}: a finite number above 0, got {value!r}")
+        if self.heartbeat_timeout_s <= HEARTBEAT_QUERY_AFTER_S:
+            raise ValueError(f"XgvClientConfig.heartbeat_timeout_s: above "
+                             f"{HEARTBEAT_QUERY_AFTER_S} s (an overdue heartbeat is asked for "
+                             f"then), got {self.heartbeat_timeout_s!r}")
+
+
+def false_trips_per_hour(loss: float, timeout_s: float = HEARTBEAT_TIMEOUT_S) -> dict[str, float]:
+    """Expected false trips an hour of the heartbeat and control-query timeouts when each
+    datagram is lost independently with probability ``loss`` and nothing else goes wrong
+    (the loss model of the constants above).
+
+    heartbeat: every unprompted heartbeat of the ``timeout_s`` window after the last one
+    received lost, and every overdue query (from ``HEARTBEAT_QUERY_AFTER_S``, answered by
+    ``timeout_s``) or its answer lost; one window starts per heartbeat received. control:
+    ``CONTROL_QUERIES_UNANSWERED`` queries in a row lost either way, one run starting per
+    query answered."""
+    if not (0.0 <= loss <= 1.0):
+        raise ValueError(f"loss: a fraction in [0, 1], got {loss!r}")
+    round_trip_lost = 1.0 - (1.0 - loss) ** 2
+    beats = math.floor(timeout_s / HEARTBEAT_PERIOD_S)
+    queries = math.floor((timeout_s - HEARTBEAT_QUERY_AFTER_S) / HEARTBEAT_QUERY_PERIOD_S)
+    per_window = loss ** beats * round_trip_lost ** queries
+    received_per_hour = 3600.0 / HEARTBEAT_PERIOD_S * (1.0 - loss)
+    control = (3600.0 / CONTROL_QUERY_PERIOD_S * (1.0 - round_trip_lost)
+               * round_trip_lost ** CONTROL_QUERIES_UNANSWERED)
+    return {"heartbeat": received_per_hour * per_window, "control": control}
 
 
 class ClientStats:
@@ -273,6 +327,7 @@ class XgvClient:
         self.control_queries = 0     # Query Component Control sent since the last Report
         self.next_control_query_s = -math.inf
         self.next_query_s = -math.inf
+        self.next_heartbeat_query_s = -math.inf   # an overdue heartbeat is asked for
         self.next_request_s = -math.inf
         self.next_resume_s = -math.inf
         self.next_create_s: dict[int, float] = dict.fromkeys(self.wanted, -math.inf)
@@ -696,7 +751,11 @@ class XgvClient:
                         presence_vector=_every_field(code)), component,
                         service_connection=True))
                     self.next_create_s[code] = now_s + cfg.retry_s
-            if self.control and now_s >= self.next_control_query_s:
+            if (self.heartbeat_s is not None and now_s >= self.next_heartbeat_query_s - TIME_EPS_S
+                    and now_s - self.heartbeat_s >= HEARTBEAT_QUERY_AFTER_S):
+                messages.append(self._to(QueryHeartbeatPulse(), self.node_manager))
+                self.next_heartbeat_query_s = now_s + HEARTBEAT_QUERY_PERIOD_S
+            if self.control and now_s >= self.next_control_query_s - TIME_EPS_S:
                 messages.extend(self._query_control(now_s))
             if not self.control and now_s >= self.next_request_s:
                 messages.append(self._to(RequestComponentControl(authority=cfg.authority),
@@ -803,4 +862,4 @@ class XgvClient:
             sequence=sequence))
 
 
-__all__ = ["XgvClient", "XgvClientConfig"]
+__all__ = ["XgvClient", "XgvClientConfig", "false_trips_per_hour"]
