@@ -634,3 +634,17 @@ def test_an_old_speed_state_arriving_late_is_no_stop(preset) -> None:
     out = node.step(1.01, _with_speed_state(sensors(preset, speed=3.0), unasked_stops=0))
     assert not [n for n in all_of(out, Topic.NOTICE) if n.kind == "interrupted"]
     assert node.active is not None
+
+
+def test_an_old_speed_state_arriving_late_still_stops_when_it_reports_an_estop(preset) -> None:
+    """A reordered report (lower count, same start) is not the state now, but the e-stop it
+    reports is obeyed: what stops is never stale."""
+    node = MoveServer(preset)
+    run(node, 0.0, 0.5, (cmd(d=50.0, cid=1),), speed=3.0)
+    node.step(0.5, _with_speed_state(sensors(preset, speed=3.0), unasked_stops=2))
+    out = run(node, 0.51, 0.5, (cmd(d=50.0, cid=2),), speed=3.0)
+    assert last(out, Topic.MOVE_REPLY).accepted
+    out = node.step(1.01, _with_speed_state(sensors(preset, speed=3.0), unasked_stops=1,
+                                            estop=True, estop_code=1001))
+    notice = last(out, Topic.NOTICE)
+    assert (notice.kind, notice.code) == ("interrupted", "watchdog") and node.active is None

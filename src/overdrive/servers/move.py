@@ -369,7 +369,11 @@ class MoveServer:
     def _speed_state(self, now_s: float, msg: SpeedState, out: list) -> None:
         seen = self.speed_seen
         if seen is not None and msg.started_s == seen[0] and msg.unasked_stops < seen[1]:
-            return   # older than one already seen (reordered): no news
+            # older than one already seen (reordered): not the state now, but a stop it
+            # reports is obeyed all the same (what stops is never stale)
+            if msg.estop and estop_cause(msg.estop_code):
+                self._speed_stop(msg.estop_code)
+            return
         last_fault = self.speed_state.fault if self.speed_state is not None else 0
         self.speed_state = msg
         self.speed_seen = (msg.started_s, msg.unasked_stops)
