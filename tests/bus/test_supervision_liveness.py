@@ -6,7 +6,14 @@ from __future__ import annotations
 import pytest
 
 from overdrive.messages import NODE_TICK_PERIOD_S, NodeTick, Topic
-from overdrive.runtime.supervision import HANG_BOUND_S, Hung, Liveness, Resumed, TickNode
+from overdrive.runtime.supervision import (
+    FUTURE_TICK_TOLERANCE_S,
+    HANG_BOUND_S,
+    Hung,
+    Liveness,
+    Resumed,
+    TickNode,
+)
 
 P = NODE_TICK_PERIOD_S
 
@@ -136,3 +143,28 @@ def test_a_tick_older_than_one_already_seen_changes_nothing() -> None:
     assert live.tick("move", 1, 0.2) == [] and live.tick("move", 0, 0.1) == []
     assert live.check(0.6) == [Hung("speed", 0.0, pytest.approx(0.6), 0.6)]
     assert live.check(0.69) == [], "judged from the newest tick, 0.2 s"
+
+
+def test_a_tick_stamped_after_its_receipt_cannot_switch_supervision_off() -> None:
+    """One forged tick stamped far ahead would make every true tick after it look out of
+    order, and the process could hang unreported: it is ignored and counted."""
+    live = Liveness(["move"])
+    seq = _tick_until(live, "move", 0.0, 1.0)
+    assert live.tick("move", seq, 1e9, now_s=1.05) == [] and live.ignored == 1
+    assert live.tick("move", seq + 1, 1.1, now_s=1.11) == []
+    assert live.check(1.1 + HANG_BOUND_S + 0.05) == [
+        Hung("move", pytest.approx(1.1), pytest.approx(HANG_BOUND_S + 0.05), pytest.approx(1.65))]
+
+
+def test_a_tick_stamped_within_the_clock_tolerance_ahead_counts() -> None:
+    live = Liveness(["move"])
+    assert live.tick("move", 0, FUTURE_TICK_TOLERANCE_S - 0.01, now_s=0.0) == []
+    assert live.ignored == 0
+
+
+def test_a_process_hung_before_its_first_tick_resumes_from_its_start() -> None:
+    live = Liveness(["driving"])
+    assert live.check(0.6) == [Hung("driving", 0.0, pytest.approx(0.6), 0.6)]
+    assert live.tick("driving", 0, 2.0) == [Resumed("driving", 0.0, 2.0, 2.0, 0)]
+    assert live.report()["processes"]["driving"]["hangs"][0]["silent_s"] == 2.0
+    assert live.check(2.3) == []

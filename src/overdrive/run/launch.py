@@ -841,7 +841,8 @@ class Launch:
             def tick(topic: str, msg: Any, sent_s: float) -> None:
                 """Liveness ticks, by their send time on the run's axis (``runtime.supervision``)."""
                 if topic == Topic.TICK and isinstance(msg, NodeTick):
-                    for finding in liveness.tick(msg.process, msg.seq, sent_s - epoch):
+                    for finding in liveness.tick(msg.process, msg.seq, sent_s - epoch,
+                                                 self.bus.clock() - epoch):
                         self._report_liveness(finding)
 
             self.bus.tap_stamped(tick)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from overdrive.messages import NODE_TICK_PERIOD_S, NodeTick, Topic
+from overdrive.servers.clock_offset import MAX_CLOCK_OFFSET_S
 
 HANG_BOUND_S = 0.5
 """Silence that makes a process hung: five tick periods. A healthy process's gap is one period
@@ -31,6 +32,11 @@ plus what the host adds: stalls of 65-87 ms at niceness -10 and host-wide stalls
 under two busy loops (docs/multiprocess.md, "Under load"), and ticks may drop (periodic state):
 0.4 s of slack over the period. With the launcher's supervision every 0.1 s, a hang is reported
 0.5-0.6 s after the last tick, within the 1 s asked of it (issue 38)."""
+
+FUTURE_TICK_TOLERANCE_S = MAX_CLOCK_OFFSET_S
+"""A tick may be stamped this much after the launcher received it (on the launcher's axis, from
+the midpoint of the offset bounds): the processes' clocks agree within it or the launch never
+engaged (servers.clock_offset). A later stamp is forged or broken."""
 
 
 @dataclass(frozen=True)
@@ -97,10 +103,15 @@ class Liveness:
         """``process`` exited (reported as such): no hang is judged until ``expect``."""
         self._watch[process].down = True
 
-    def tick(self, process: str, seq: int, sent_s: float) -> list[Finding]:
-        """A tick of ``process`` sent at ``sent_s``; what it ends (a hang seen, or missed)."""
+    def tick(self, process: str, seq: int, sent_s: float,
+             now_s: float | None = None) -> list[Finding]:
+        """A tick of ``process`` sent at ``sent_s``, received at ``now_s``; what it ends (a hang
+        seen, or missed). A tick stamped later than its receipt (beyond the clocks' tolerance)
+        is ignored: counted, it would make every true tick after it look out of order and
+        switch the process's supervision off."""
         watch = self._watch.get(process)
-        if watch is None or not math.isfinite(sent_s):
+        if (watch is None or not math.isfinite(sent_s)
+                or (now_s is not None and sent_s > now_s + FUTURE_TICK_TOLERANCE_S)):
             self.ignored += 1
             return []
         if watch.down or sent_s < watch.expected_from_s:
@@ -111,7 +122,15 @@ class Liveness:
             return []       # out of order: a later tick already counted
         watch.last_sent_s, watch.last_seq = sent_s, seq
         if last is None:
-            return []
+            if watch.hung_since_s is None:
+                return []
+            # reported hung before its first tick: resumed, silent since it was started
+            watch.hung_since_s = None
+            gap_s = sent_s - watch.expected_from_s
+            watch.max_gap_s = max(watch.max_gap_s, gap_s)
+            watch.episodes[-1].update(resumed_s=round(sent_s, 4), silent_s=round(gap_s, 4),
+                                      lost_ticks=0)
+            return [Resumed(process, watch.expected_from_s, sent_s, gap_s, 0)]
         gap_s = sent_s - last
         watch.max_gap_s = max(watch.max_gap_s, gap_s)
         if gap_s <= self.bound_s and watch.hung_since_s is None:
@@ -177,4 +196,4 @@ class TickNode:
         return [(Topic.TICK, tick)]
 
 
-__all__ = ["HANG_BOUND_S", "Finding", "Hung", "Liveness", "Resumed", "TickNode"]
+__all__ = ["FUTURE_TICK_TOLERANCE_S", "HANG_BOUND_S", "Finding", "Hung", "Liveness", "Resumed", "TickNode"]
