@@ -197,5 +197,8 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
         failure = check(expect, summary, rec.states_seen, rec.modes_seen)
         if failure:
             violations.append(failure)
+    link_node = next((n for n in nodes if hasattr(n, "link_report")), None)
+    if link_node is not None:   # a JAUS link (docs/scenarios.md, "summary.json")
+        summary["link"] = link_node.link_report()
     summary["violations"] = violations
     return summary

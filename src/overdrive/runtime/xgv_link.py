@@ -39,6 +39,8 @@ LOOPBACK: Final = "127.0.0.1"
 DELIVERY_TIMEOUT_S: Final = 1.0      # a loopback datagram not there after this is lost
 RECEIVE_BUFFER: Final = 65535        # above the JUDP maximum, so oversized datagrams are seen
 SOCKET_BUFFER_BYTES: Final = 1 << 20
+STALL_BUFFER_BYTES: Final = 4 << 20  # as xgv-sim's: ~3 s of the XGV's reports (capped by
+                                     # net.core.rmem_max)
 _TO = {"xgv": "client", "client": "xgv"}
 Side = Literal["xgv", "client"]
 
@@ -151,7 +153,9 @@ class UdpPort:
         if self.sock is None:
             # a host name resolved once, so replies can be matched against the address
             self.remote = (socket.gethostbyname(self.remote[0]), self.remote[1])
-            self.sock = open_udp(self.bind)
+            # a queue deep enough to hold seconds of 100 Hz reports while the stack is stalled
+            # (they are counted by their stamps when read; dropped ones would be a gap)
+            self.sock = open_udp(self.bind, receive_buffer_bytes=STALL_BUFFER_BYTES)
         return self.sock
 
     def send(self, data: bytes) -> None:
@@ -251,6 +255,10 @@ class XgvSensorNode:
         for data in self.port.receive(now_s):
             self.client.receive(data, now_s)
         return self.client.sensor_outputs(now_s)
+
+    def link_report(self) -> dict[str, Any]:
+        """``summary.json`` ``link``: the reports' age, the round trip and the loss measured."""
+        return self.client.link_time.report()
 
     def close(self) -> None:
         self.port.close()
