@@ -331,11 +331,15 @@ class XgvClient:
                                         # to a hold otherwise, driving.SpeedLimits)
         self.timeout_latched = False    # the vehicle's command timeout: brakes until a runwait
         self.control_query_s = -math.inf   # when the outstanding Query Component Control went
+        self.read_s = 0.0               # when the datagram being taken was read
 
     # ------------------------------------------------------------------ wire in
 
-    def receive(self, data: bytes, now_s: float) -> None:
-        """Take one datagram from the XGV; malformed or foreign ones are counted and dropped."""
+    def receive(self, data: bytes, now_s: float, read_s: float | None = None) -> None:
+        """Take one datagram from the XGV; malformed or foreign ones are counted and dropped.
+        ``read_s``: when it was read, on any steady clock (default ``now_s``); the reports'
+        ages are measured on it."""
+        self.read_s = now_s if read_s is None else read_s
         self.stats.datagrams += 1
         try:
             messages = decode_datagram(data)
@@ -505,7 +509,7 @@ class XgvClient:
         dt = 0.0
         if raw_s is not None:
             source_s = self.velocity_clock.advance(raw_s)
-            age_s, stalled = self.link_time.arrival(raw_s, now_s)
+            age_s, stalled = self.link_time.arrival(raw_s, self.read_s)
             if stalled:
                 self._unasked_stop("stall", "reports stamped more than 0.2 s ahead of the "
                                             "client's clock: the client was not stepped")
