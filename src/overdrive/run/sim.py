@@ -29,6 +29,7 @@ from overdrive.scenario.schema import (
     Scenario,
     ScenarioError,
 )
+from overdrive.vehicle.xgv_client import LINK_FAULTS
 
 
 @dataclass
@@ -161,6 +162,21 @@ def clock_report(rec: Recorder) -> dict[str, Any]:
                        "refusals": est.refusals, "resets": est.resets}}
 
 
+def unexpected_link_faults(scenario: Scenario, events: list[dict[str, Any]]) -> list[str]:
+    """No silent pass: a JAUS link that stalled, lost reports, delivered them too old or was
+    degraded fails the run unless the scenario expects that fault (``expect: event: kind:
+    fault, match: {code: ...}``)."""
+    expected = {e.event.match.get("code") for e in scenario.spec.expect
+                if e.event is not None and e.event.kind == "fault"}
+    failures: dict[str, str] = {}
+    for event in events:
+        code = event.get("code")
+        if event.get("kind") == "fault" and code in LINK_FAULTS and code not in expected:
+            failures.setdefault(code, f"link fault {code} at {event.get('t_s')} s: "
+                                      f"{event.get('message', '')}")
+    return list(failures.values())
+
+
 def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,
                  nodes: list[Node], invariant_violations: list[str],
                  faults_counts: dict[str, int] | None = None) -> dict[str, Any]:
@@ -211,6 +227,7 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
         # no silent pass: the planner's every MOVE / REVERSE was refused, nothing was driven
         violations.append(f"refused everything: none of {rec.moves_refused} MOVE/REVERSE "
                           f"commands was accepted (first: {rec.first_refusal})")
+    violations.extend(unexpected_link_faults(scenario, rec.events))
     for expect in scenario.spec.expect:
         failure = check(expect, summary, rec.states_seen, rec.modes_seen)
         if failure:

@@ -8,8 +8,9 @@ the source"):
 
 - a **gap** in the stamps longer than ``GAP_S`` (reports lost: what happened between is known
   only as a chord between two poses);
-- a **receiver stall**: the stamps ran ahead of the receiver's own clock by more than
-  ``RECEIVER_STALL_S`` (the receiver was not stepped; its clock is behind the world's);
+- a **receiver stall**: the receiver's own steps further apart than ``RECEIVER_STALL_S`` (its
+  clock follows the wall clock, ``run.sim``'s ``follow_wall_clock``): the vehicle went that
+  long without fresh commands, whatever the reports say;
 - an **old report**: its age beyond a bound (``XgvClient`` acts on ``AGE_DEGRADED_S`` and
   ``AGE_STOP_S``).
 
@@ -35,9 +36,9 @@ DAY_S: Final = 86_400.0              # the stamp's hour/min/s/ms fields wrap dai
                                      # taken modulo a day, never longer than half of one
 GAP_S: Final = 0.25                  # reports missing longer than this (a lost link, not jitter;
                                      # 25 periods at 100 Hz): the odometer takes the chord
-RECEIVER_STALL_S: Final = 0.2        # stamps ahead of our clock by more than this: we were not
-                                     # stepped (SIGSTOP, a scheduler stall) for longer than the
-                                     # stack promises a stop after silence (SPSS watchdog, 200 ms)
+RECEIVER_STALL_S: Final = 0.2        # steps further apart than this: we were not stepped
+                                     # (SIGSTOP, a scheduler stall) for longer than the stack
+                                     # promises a stop after silence (SPSS watchdog, 200 ms)
 MAX_ROUND_TRIPS: Final = 64          # round trips kept (shortest of the recent ones)
 MAX_AGE_SAMPLES: Final = 200_000     # ages kept for the summary (over half an hour at 100 Hz)
 SEQUENCE_SPAN: Final = 0x10000       # JAUS header sequence numbers are u16
@@ -86,11 +87,17 @@ class LinkTime:
         self.ages_s: list[float] = []
         self.sequences: dict[tuple[Any, int], list[int]] = {}   # (source, code) -> counts
         self.stalls = 0
+        self.sent_before = self.received_before = 0   # counts of connections before a reset
 
     def reset(self) -> None:
-        """The link went down: the other end may come back on another clock."""
+        """The link went down: the other end may come back on another clock, and its
+        connections with new sequence numbers (the counts so far are kept)."""
         self.offset_lo_s = None
         self.round_trips_s.clear()
+        for _, got, span in self.sequences.values():
+            self.sent_before += span
+            self.received_before += got
+        self.sequences.clear()
 
     def round_trip(self, seconds: float) -> None:
         if math.isfinite(seconds) and seconds >= 0.0:
@@ -100,23 +107,17 @@ class LinkTime:
     def shortest_round_trip_s(self) -> float | None:
         return min(self.round_trips_s) if self.round_trips_s else None
 
-    def arrival(self, raw_s: float, received_s: float) -> tuple[float, bool]:
-        """(age upper bound, receiver stalled) of a report stamped ``raw_s`` received at
-        ``received_s`` (our clock). A report that seems to arrive more than
-        ``RECEIVER_STALL_S`` before the fastest delivery seen says our clock is behind: a stall
-        of ours, not a faster link (the bound is not moved by it)."""
-        seen = stamp_delta_s(raw_s, received_s % DAY_S)   # stamp - receipt, within half a day
+    def arrival(self, raw_s: float, read_s: float) -> float:
+        """The age (upper bound) of a report stamped ``raw_s`` read at ``read_s`` (our clock,
+        any origin: only differences count)."""
+        seen = stamp_delta_s(raw_s, read_s % DAY_S)   # stamp - receipt, within half a day
         lo = self.offset_lo_s
-        stalled = lo is not None and stamp_delta_s(seen, lo) > RECEIVER_STALL_S
-        if stalled:
-            self.stalls += 1
-        elif lo is None or stamp_delta_s(seen, lo) > 0.0:
+        if lo is None or stamp_delta_s(seen, lo) > 0.0:
             self.offset_lo_s = lo = seen
-        excess_s = max(0.0, stamp_delta_s(lo, seen)) if lo is not None else 0.0
-        age_s = excess_s + (self.shortest_round_trip_s() or 0.0)
-        if not stalled and len(self.ages_s) < MAX_AGE_SAMPLES:
+        age_s = stamp_delta_s(lo, seen) + (self.shortest_round_trip_s() or 0.0)
+        if len(self.ages_s) < MAX_AGE_SAMPLES:
             self.ages_s.append(age_s)
-        return age_s, stalled
+        return age_s
 
     def sequence(self, source: Any, code: int, number: int) -> None:
         """Count a service-connection report by its sequence number (loss = numbers skipped)."""
@@ -134,7 +135,7 @@ class LinkTime:
         """``summary.json`` ``link``: report age in ms (median, p95, max), round trip in ms
         (shortest, last), and the reports the XGV sent (by sequence number) against those
         received."""
-        sent = received = 0
+        sent, received = self.sent_before, self.received_before
         for _, got, span in self.sequences.values():
             sent += span
             received += got
@@ -153,7 +154,7 @@ class LinkTime:
                               else None},
             "loss": {"sent": sent, "received": received,
                      "lost_fraction": round((sent - received) / sent, 4) if sent else None},
-            "receiver_stalls": self.stalls,
+            "receiver_stalls": self.stalls,   # counted by the client (its own step gaps)
         }
 
 

@@ -109,7 +109,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.gate import GateLimits, gate_pedals
-from overdrive.vehicle.link_time import GAP_S, LinkTime, SourceClock, stamp_s
+from overdrive.vehicle.link_time import GAP_S, RECEIVER_STALL_S, LinkTime, SourceClock, stamp_s
 from overdrive.vehicle.modes import SAFETY_MODES, computer_axes
 from overdrive.vehicle.plain_jaus import (
     STATUS_TIMEOUT_S,
@@ -137,6 +137,9 @@ AGE_DISTANCE_M: Final = 0.4          # degraded: max speed = this / age, so the 
                                      # the vehicle further behind than this (8 m/s at 50 ms)
 AGE_HOLD_S: Final = 1.0              # the degraded limit follows the oldest age of the last second
 LINK_SOURCE: Final = "xgv-link"      # MaxSpeed source of the degraded-link limit
+LINK_FAULTS: Final = ("xgv_stall", "xgv_report_gap", "xgv_report_age", "xgv_link_degraded")
+"""Fault codes of time the reports cannot account for, or a degraded link: a run with one fails
+unless its scenario expects it (no silent pass; ``run.sim.make_summary``)."""
 POSE_NOISE_SIGMAS: Final = 3.0       # position noise allowance on that chord
 MIN_CURVATURE_SPEED_MPS: Final = 0.1  # below this the yaw rate says nothing about the curvature
 
@@ -332,6 +335,7 @@ class XgvClient:
         self.timeout_latched = False    # the vehicle's command timeout: brakes until a runwait
         self.control_query_s = -math.inf   # when the outstanding Query Component Control went
         self.read_s = 0.0               # when the datagram being taken was read
+        self.sensor_step_s: float | None = None   # when sensor_outputs last ran
 
     # ------------------------------------------------------------------ wire in
 
@@ -509,10 +513,7 @@ class XgvClient:
         dt = 0.0
         if raw_s is not None:
             source_s = self.velocity_clock.advance(raw_s)
-            age_s, stalled = self.link_time.arrival(raw_s, self.read_s)
-            if stalled:
-                self._unasked_stop("stall", "reports stamped more than 0.2 s ahead of the "
-                                            "client's clock: the client was not stepped")
+            age_s = self.link_time.arrival(raw_s, self.read_s)
             if self.velocity_source_s is not None:
                 dt = source_s - self.velocity_source_s
                 if dt <= 0.0:
@@ -593,6 +594,12 @@ class XgvClient:
         """Bus messages for what arrived since the last call (nothing while the link is down)."""
         cfg = self.config
         out: list[tuple[str, Any]] = []
+        last, self.sensor_step_s = self.sensor_step_s, now_s
+        if last is not None and now_s - last > RECEIVER_STALL_S and self.control:
+            # we were not stepped: the vehicle went that long without fresh commands
+            self.link_time.stalls += 1
+            self._unasked_stop("stall", f"the client was not stepped for {now_s - last:.3f} s "
+                                        f"(bound {RECEIVER_STALL_S:.3f} s)")
         if (self.link_up and self.heartbeat_s is not None
                 and now_s - self.heartbeat_s > cfg.heartbeat_timeout_s):
             self.link_up = False
@@ -915,4 +922,4 @@ class XgvClient:
             sequence=sequence))
 
 
-__all__ = ["XgvClient", "XgvClientConfig"]
+__all__ = ["LINK_FAULTS", "XgvClient", "XgvClientConfig"]
