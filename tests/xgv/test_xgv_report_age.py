@@ -11,13 +11,14 @@ from typing import Any
 import pytest
 import yaml
 
-from overdrive.jaus import JausTimestamp
+from overdrive.jaus import JausTimestamp, ReportVelocityState
 from overdrive.run.compose import build_nodes
 from overdrive.run.sim import RunResult, run_scenario
 from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.link_time import LinkTime, SourceClock, stamp_delta_s, stamp_s
 from overdrive.vehicle.xgv import jaus_timestamp
-from overdrive.vehicle.xgv_client import AGE_DEGRADED_S, AGE_DISTANCE_M, AGE_STOP_S
+from overdrive.vehicle.xgv_client import AGE_DEGRADED_S, AGE_DISTANCE_M, AGE_STOP_S, XgvClient
 
 MOVE_M = 60.0
 MAXSPEED_MPS = 8.0
@@ -174,3 +175,35 @@ def test_a_delayed_link_is_slowed_then_stopped_never_overrun_nor_over_the_limit(
     if age_s > AGE_DEGRADED_S:
         assert result.exit_code == 1   # no silent pass
     assert [v for v in result.summary["violations"] if not v.startswith("link fault")] == []
+
+
+
+def velocity(speed_mps: float, stamped_s: float) -> ReportVelocityState:
+    return ReportVelocityState(velocity_x_mps=speed_mps, yaw_rate_radps=0.0,
+                               timestamp=jaus_timestamp(stamped_s))
+
+
+def test_reports_read_at_once_count_by_their_stamps() -> None:
+    """A second of 100 Hz reports at 5 m/s read in one step (a stalled reader): 4.95 m between
+    the first and the last, as stamped; read one by one, the same."""
+    at_once, one_by_one = XgvClient(PRESETS["escape-hybrid"]), XgvClient(PRESETS["escape-hybrid"])
+    for i in range(100):
+        at_once._velocity_report(velocity(5.0, 500.0 + 0.01 * i), 1.0)
+        one_by_one._velocity_report(velocity(5.0, 500.0 + 0.01 * i), 0.01 * i)
+    assert at_once.step_m == pytest.approx(4.95) and one_by_one.step_m == pytest.approx(4.95)
+    assert not at_once.timeout_latched
+
+
+def test_an_xgv_clock_that_steps_back_is_an_unasked_stop_not_a_deaf_client() -> None:
+    """An XGV restarted on a new clock (stamps from 0 again): a stop, latched, and the client
+    reads on from the new stamps (it does not wait for the old ones to be passed); a report a
+    few periods older than the last (reordered) is only ignored."""
+    client = XgvClient(PRESETS["escape-hybrid"])
+    for i in range(10):
+        client._velocity_report(velocity(5.0, 500.0 + 0.01 * i), 0.01 * i)
+    client._velocity_report(velocity(4.0, 500.05), 0.1)      # reordered: ignored
+    assert client.speed_mps == 5.0 and not client.timeout_latched
+    client._velocity_report(velocity(3.0, 0.0), 0.11)         # the clock stepped back
+    client._velocity_report(velocity(2.0, 0.01), 0.12)
+    assert client.timeout_latched and client.speed_mps == 2.0
+    assert any(n.code == "xgv_report_gap" for n in client.notices)

@@ -516,8 +516,13 @@ class XgvClient:
             age_s = self.link_time.arrival(raw_s, self.read_s)
             if self.velocity_source_s is not None:
                 dt = source_s - self.velocity_source_s
-                if dt <= 0.0:
+                if -ODOMETER_GAP_S <= dt <= 0.0:
                     return   # a repeated or reordered (older) report: the newer one stands
+                if dt < 0.0:   # the XGV's clock went back (restarted): nothing to count from
+                    self._unasked_stop("report_gap", f"Velocity State stamped {-dt:.3f} s "
+                                                     f"before the last one: its clock stepped")
+                    self.gap_in_step = True
+                    dt = 0.0
             self.velocity_source_s = source_s
             self.report_age_s = age_s
         elif self.velocity_s is not None:
