@@ -206,4 +206,5 @@ def test_an_xgv_clock_that_steps_back_is_an_unasked_stop_not_a_deaf_client() -> 
     client._velocity_report(velocity(3.0, 0.0), 0.11)         # the clock stepped back
     client._velocity_report(velocity(2.0, 0.01), 0.12)
     assert client.timeout_latched and client.speed_mps == 2.0
+    assert client.report_age_s is not None and client.report_age_s < AGE_DEGRADED_S   # afresh
     assert any(n.code == "xgv_report_gap" for n in client.notices)

@@ -513,7 +513,6 @@ class XgvClient:
         dt = 0.0
         if raw_s is not None:
             source_s = self.velocity_clock.advance(raw_s)
-            age_s = self.link_time.arrival(raw_s, self.read_s)
             if self.velocity_source_s is not None:
                 dt = source_s - self.velocity_source_s
                 if -ODOMETER_GAP_S <= dt <= 0.0:
@@ -522,7 +521,9 @@ class XgvClient:
                     self._unasked_stop("report_gap", f"Velocity State stamped {-dt:.3f} s "
                                                      f"before the last one: its clock stepped")
                     self.gap_in_step = True
+                    self.link_time.reset()   # ages measured afresh on the new clock
                     dt = 0.0
+            age_s = self.link_time.arrival(raw_s, self.read_s)
             self.velocity_source_s = source_s
             self.report_age_s = age_s
         elif self.velocity_s is not None:
