@@ -30,4 +30,4 @@ def run_drive(scenario: Scenario, remote: Address, out_dir: Any = None, *,
     servers = build_servers(scenario, over_jaus=True)
     return run_scenario(scenario, out_dir, realtime=True, plot=plot, keep_trace=keep_trace,
                         nodes=drive_nodes(scenario, servers, remote, bind, profile),
-                        position_noise_m=REPORTED_POSE_BOUND_M)
+                        position_noise_m=REPORTED_POSE_BOUND_M, follow_wall_clock=True)

@@ -29,6 +29,7 @@ from overdrive.scenario.schema import (
     Scenario,
     ScenarioError,
 )
+from overdrive.vehicle.xgv_client import LINK_FAULTS
 
 
 @dataclass
@@ -49,7 +50,7 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
                  progress: Callable[[float, float], None] | None = None,
                  period_s: float = DEFAULT_PERIOD_S, nodes: list[Node] | None = None,
                  observers: Sequence[Any] = (), record_mcap: bool = True,
-                 position_noise_m: float = 0.0) -> RunResult:
+                 position_noise_m: float = 0.0, follow_wall_clock: bool = False) -> RunResult:
     """Run ``scenario`` to its ``duration_s``; write the run folder when ``out_dir`` is given.
 
     ``nodes`` replaces the scenario's own composition (e.g. the move server's simulation mode,
@@ -57,6 +58,11 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     ``set_time(now_s)`` and ``observe(topic, msg)`` (the ``--live`` view); ``record_mcap``:
     write ``run.mcap`` into the run folder. ``position_noise_m``: the error bound of the pose
     the judge takes as truth when there is no simulator (``overdrive drive``).
+    ``follow_wall_clock`` (with ``realtime``; ``overdrive drive``): a tick late by more than a
+    period skips to the wall clock, so the stack's clock stays the world's (a stall of the
+    process is one long step the nodes see, never time compressed to catch up, which would
+    make the vehicle's reports look early and its motion too fast); counted in
+    ``summary.json`` ``wall_clock``.
     """
     nodes = nodes if nodes is not None else build_nodes(scenario)
     code_provenance()     # read before the run folder exists: it may lie inside the checkout
@@ -91,7 +97,17 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
         wall_start = time.monotonic()
         end_tick = round(duration_s / period_s)
         report_every = max(1, end_tick // 200)
+        late_ticks = late_steps = 0
+        longest_late_s = 0.0
         while runtime.tick <= end_tick:
+            if follow_wall_clock and realtime:   # before the step: it reads what came meanwhile
+                late_s = (time.monotonic() - wall_start) - runtime.now_s
+                if late_s > period_s:
+                    skip = int(late_s / period_s)
+                    runtime.tick += skip
+                    late_ticks += skip
+                    late_steps += 1
+                    longest_late_s = max(longest_late_s, late_s)
             faults.now_s = recorder.now_s = monitor.now_s = runtime.tick * period_s
             for tap in taps:
                 tap.set_time(faults.now_s)
@@ -108,6 +124,9 @@ def run_scenario(scenario: Scenario, out_dir: str | Path | None = None, *, keep_
     summary = make_summary(scenario, recorder, runtime.now_s - period_s, wall_time_s, nodes,
                            monitor.finish(), faults.counts)
     add_judgement(summary, monitor)
+    if follow_wall_clock:
+        summary["wall_clock"] = {"late_steps": late_steps, "skipped_ticks": late_ticks,
+                                 "longest_late_s": round(longest_late_s, 3)}
     exit_code = 1 if summary["violations"] else 0
     write_summary(out_path, summary, plot=plot)
     return RunResult(summary=summary, exit_code=exit_code, out_dir=out_path,
@@ -141,6 +160,21 @@ def clock_report(rec: Recorder) -> dict[str, Any]:
                        "hi_s": r6(est.hi_s), "uncertainty_s": r6(est.uncertainty_s),
                        "worst_uncertainty_s": round(est.worst_uncertainty_s, 6),
                        "refusals": est.refusals, "resets": est.resets}}
+
+
+def unexpected_link_faults(scenario: Scenario, events: list[dict[str, Any]]) -> list[str]:
+    """No silent pass: a JAUS link that stalled, lost reports, delivered them too old or was
+    degraded fails the run unless the scenario expects that fault (``expect: event: kind:
+    fault, match: {code: ...}``)."""
+    expected = {e.event.match.get("code") for e in scenario.spec.expect
+                if e.event is not None and e.event.kind == "fault"}
+    failures: dict[str, str] = {}
+    for event in events:
+        code = event.get("code")
+        if event.get("kind") == "fault" and code in LINK_FAULTS and code not in expected:
+            failures.setdefault(code, f"link fault {code} at {event.get('t_s')} s: "
+                                      f"{event.get('message', '')}")
+    return list(failures.values())
 
 
 def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time_s: float,
@@ -193,9 +227,13 @@ def make_summary(scenario: Scenario, rec: Recorder, sim_time_s: float, wall_time
         # no silent pass: the planner's every MOVE / REVERSE was refused, nothing was driven
         violations.append(f"refused everything: none of {rec.moves_refused} MOVE/REVERSE "
                           f"commands was accepted (first: {rec.first_refusal})")
+    violations.extend(unexpected_link_faults(scenario, rec.events))
     for expect in scenario.spec.expect:
         failure = check(expect, summary, rec.states_seen, rec.modes_seen)
         if failure:
             violations.append(failure)
+    link_node = next((n for n in nodes if hasattr(n, "link_report")), None)
+    if link_node is not None:   # a JAUS link (docs/scenarios.md, "summary.json")
+        summary["link"] = link_node.link_report()
     summary["violations"] = violations
     return summary

@@ -27,7 +27,8 @@ from __future__ import annotations
 import contextlib
 import select
 import socket
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from typing import Any, Final, Literal
 
 from overdrive.bus.faults import ChannelFaults, Window
@@ -40,6 +41,8 @@ LOOPBACK: Final = "127.0.0.1"
 DELIVERY_TIMEOUT_S: Final = 1.0      # a loopback datagram not there after this is lost
 RECEIVE_BUFFER: Final = 65535        # above the JUDP maximum, so oversized datagrams are seen
 SOCKET_BUFFER_BYTES: Final = 1 << 20
+STALL_BUFFER_BYTES: Final = 4 << 20  # as xgv-sim's: ~3 s of the XGV's reports (capped by
+                                     # net.core.rmem_max)
 _TO = {"xgv": "client", "client": "xgv"}
 Side = Literal["xgv", "client"]
 
@@ -144,17 +147,21 @@ class LoopbackLink:
 class UdpPort:
     """A non-blocking UDP socket talking to one remote XGV (wall-clock runs)."""
 
-    def __init__(self, remote: Address, bind: Address = ("0.0.0.0", 0)) -> None:
+    def __init__(self, remote: Address, bind: Address = ("0.0.0.0", 0),
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.remote = remote
         self.bind = bind
         self.sock: socket.socket | None = None
         self.foreign = 0
+        self.clock = clock
 
     def _open(self) -> socket.socket:
         if self.sock is None:
             # a host name resolved once, so replies can be matched against the address
             self.remote = (socket.gethostbyname(self.remote[0]), self.remote[1])
-            self.sock = open_udp(self.bind)
+            # a queue deep enough to hold seconds of 100 Hz reports while the stack is stalled
+            # (they are counted by their stamps when read; dropped ones would be a gap)
+            self.sock = open_udp(self.bind, receive_buffer_bytes=STALL_BUFFER_BYTES)
         return self.sock
 
     def send(self, data: bytes) -> None:
@@ -162,6 +169,11 @@ class UdpPort:
             self._open().sendto(data, self.remote)
 
     def receive(self) -> list[bytes]:
+        return [data for data, _ in self.receive_timed()]
+
+    def receive_timed(self) -> list[tuple[bytes, float]]:
+        """What is waiting, each with when it was read (``clock``: any steady clock; the
+        reports' age is measured against their stamps, so its origin does not matter)."""
         sock = self._open()
         got = []
         while True:
@@ -172,7 +184,7 @@ class UdpPort:
             if sender[:2] != self.remote:   # issue 18: the XGV's address and port only
                 self.foreign += 1
                 continue
-            got.append(data)
+            got.append((data, self.clock()))
 
     def close(self) -> None:
         if self.sock is not None:
@@ -224,10 +236,12 @@ class ClientPort:
     def __init__(self, link: LoopbackLink | UdpPort) -> None:
         self.link = link
 
-    def receive(self, now_s: float) -> list[bytes]:
+    def receive(self, now_s: float) -> list[tuple[bytes, float]]:
+        """The client's datagrams, each with when it was read: the lock-step clock on the
+        loopback link, the wall clock on a real one (a stalled stack reads its queue late)."""
         if isinstance(self.link, LoopbackLink):
-            return [data for data, _ in self.link.receive("client", now_s)]
-        return self.link.receive()
+            return [(data, now_s) for data, _ in self.link.receive("client", now_s)]
+        return self.link.receive_timed()
 
     def send(self, data: bytes, now_s: float) -> None:
         if isinstance(self.link, LoopbackLink):
@@ -251,9 +265,13 @@ class XgvSensorNode:
         self.port = port
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
-        for data in self.port.receive(now_s):
-            self.client.receive(data, now_s)
+        for data, read_s in self.port.receive(now_s):
+            self.client.receive(data, now_s, read_s)
         return self.client.sensor_outputs(now_s)
+
+    def link_report(self) -> dict[str, Any]:
+        """``summary.json`` ``link``: the reports' age, the round trip and the loss measured."""
+        return self.client.link_time.report()
 
     def close(self) -> None:
         self.port.close()

@@ -97,6 +97,7 @@ from overdrive.jaus.judp import datagrams
 from overdrive.messages import (
     GpsIns,
     Imu,
+    MaxSpeed,
     Notice,
     PedalCommand,
     PowertrainCommand,
@@ -108,6 +109,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.gate import GateLimits, gate_pedals
+from overdrive.vehicle.link_time import GAP_S, RECEIVER_STALL_S, LinkTime, SourceClock, stamp_s
 from overdrive.vehicle.modes import SAFETY_MODES, computer_axes
 from overdrive.vehicle.plain_jaus import (
     STATUS_TIMEOUT_S,
@@ -124,8 +126,20 @@ ESTOP_DECEL_MPS2: Final = 9.0        # speed server e-stopped: stop at the stron
 DEFAULT_DECEL_MPS2: Final = 2.5      # not in run and no SPSS rate known: a pause-like stop
 MIN_ACCEL_MPS2: Final = 0.05         # Set Motion Profile needs a positive acceleration (xgv.py)
 SHIFT_MARGIN_S: Final = 3.0          # a commanded gear not reported after shift time + this: not shifting
-ODOMETER_GAP_S: Final = 0.25        # reports missing longer than this (a lost link, not jitter):
+ODOMETER_GAP_S: Final = GAP_S       # reports missing longer than this (a lost link, not jitter):
                                      # odometer from the poses either side of the gap
+AGE_DEGRADED_S: Final = 0.05         # reports older than this (five 10 ms periods; loopback and
+                                     # a vehicle LAN take 1-20 ms): the link is degraded, slower
+AGE_STOP_S: Final = 0.125            # older than this: a fault and an unasked stop, latched (the
+                                     # wrench speed loop held a limit to 0.01 m/s at 110 ms of
+                                     # delay each way, overshot it by 0.5 m/s at 160 ms)
+AGE_DISTANCE_M: Final = 0.4          # degraded: max speed = this / age, so the stack never sees
+                                     # the vehicle further behind than this (8 m/s at 50 ms)
+AGE_HOLD_S: Final = 1.0              # the degraded limit follows the oldest age of the last second
+LINK_SOURCE: Final = "xgv-link"      # MaxSpeed source of the degraded-link limit
+LINK_FAULTS: Final = ("xgv_stall", "xgv_report_gap", "xgv_report_age", "xgv_link_degraded")
+"""Fault codes of time the reports cannot account for, or a degraded link: a run with one fails
+unless its scenario expects it (no silent pass; ``run.sim.make_summary``)."""
 POSE_NOISE_SIGMAS: Final = 3.0       # position noise allowance on that chord
 MIN_CURVATURE_SPEED_MPS: Final = 0.1  # below this the yaw rate says nothing about the curvature
 
@@ -363,11 +377,28 @@ class XgvClient:
         self.curvature_1pm = 0.0
         self.engine = "running" if self.plain else "off"   # plain: reports none (start: ready)
         self.start_failed = False
+        # time from the source (vehicle.link_time, docs/xgv.md "Time from the source")
+        self.link_time = LinkTime()
+        self.velocity_clock = SourceClock()
+        self.velocity_source_s: float | None = None   # the last velocity report's stamp
+        self.gap_in_step = False        # a stamp gap beyond ODOMETER_GAP_S since the last publish
+        self.report_age_s: float | None = None   # the newest velocity report's age (upper bound)
+        self.degraded_age_s = 0.0       # the oldest age of the last AGE_HOLD_S
+        self.degraded_s = -math.inf
+        self.limit_sent = False         # once a link limit was sent it is kept fresh (it lapses
+                                        # to a hold otherwise, driving.SpeedLimits)
+        self.timeout_latched = False    # the vehicle's command timeout: brakes until a runwait
+        self.control_query_s = -math.inf   # when the oldest unanswered control query was sent
+        self.read_s = 0.0               # when the datagram being taken was read
+        self.sensor_step_s: float | None = None   # when sensor_outputs last ran
 
     # ------------------------------------------------------------------ wire in
 
-    def receive(self, data: bytes, now_s: float) -> None:
-        """Take one datagram from the XGV; malformed or foreign ones are counted and dropped."""
+    def receive(self, data: bytes, now_s: float, read_s: float | None = None) -> None:
+        """Take one datagram from the XGV; malformed or foreign ones are counted and dropped.
+        ``read_s``: when it was read, on any steady clock (default ``now_s``); the reports'
+        ages are measured on it."""
+        self.read_s = now_s if read_s is None else read_s
         self.stats.datagrams += 1
         try:
             messages = decode_datagram(data)
@@ -391,6 +422,8 @@ class XgvClient:
             if isinstance(m, CreateServiceConnection | TerminateServiceConnection):
                 self._status_connection(m, now_s)
                 continue
+            if h.service_connection:
+                self.link_time.sequence(h.source, m.code, h.sequence)
             self._take(m, h.source, now_s)
 
     def _answer(self, m: Message, now_s: float) -> None:
@@ -462,6 +495,11 @@ class XgvClient:
             else:
                 self._notice("control", f"{self.target} refused control (response {m.response})")
         elif isinstance(m, ReportComponentControl) and source == self.target:
+            if self.control_queries >= 1:
+                # timed from the oldest query still out: the answer's own round trip or longer
+                # (an upper bound, the safe side of an age), at any delay up to the 4 s the
+                # queries are given, not only under one query period
+                self.link_time.round_trip(now_s - self.control_query_s)
             self.control_queries = 0
             if self.control and m.controller != self.config.client_id:
                 self._notice("control", f"{self.target} reports {m.controller} in control")
@@ -524,21 +562,57 @@ class XgvClient:
             self.engine = engine
 
     def _velocity_report(self, m: ReportVelocityState, now_s: float) -> None:
+        """Speed, acceleration and distance between reports, timed by the reports' own stamps
+        (arrival only for a vehicle that stamps none), so reports read late count in full."""
         if m.velocity_x_mps is None:
             return
         v = m.velocity_x_mps
-        if self.velocity_s is not None and now_s > self.velocity_s:
+        raw_s = stamp_s(m.timestamp)
+        dt = 0.0
+        if raw_s is not None:
+            source_s = self.velocity_clock.advance(raw_s)
+            if self.velocity_source_s is not None:
+                dt = source_s - self.velocity_source_s
+                if -ODOMETER_GAP_S <= dt <= 0.0:
+                    return   # a repeated or reordered (older) report: the newer one stands
+                if dt < 0.0:   # the XGV's clock went back (restarted): nothing to count from
+                    self._unasked_stop("report_gap", f"Velocity State stamped {-dt:.3f} s "
+                                                     f"before the last one: its clock stepped")
+                    self.gap_in_step = True
+                    self.link_time.reset()   # ages measured afresh on the new clock
+                    dt = 0.0
+            age_s = self.link_time.arrival(raw_s, self.read_s)
+            self.velocity_source_s = source_s
+            self.report_age_s = age_s
+        elif self.velocity_s is not None:
             dt = now_s - self.velocity_s
+        if dt > 0.0:
             self.accel_mps2 = first_order_lag((v - self.speed_mps) / dt, self.accel_mps2,
                                               self.config.accel_filter_s, dt)
             self.step_m += 0.5 * (abs(v) + abs(self.speed_mps)) * dt
             self.step_s += dt
+            if dt > ODOMETER_GAP_S:
+                self.gap_in_step = True
+                if raw_s is not None:
+                    self._unasked_stop("report_gap", f"no Velocity State stamped for "
+                                                     f"{dt:.3f} s: motion in between unknown")
         self.velocity_s, self.speed_mps = now_s, v
         yaw = m.yaw_rate_radps
         if yaw is not None and abs(v) >= MIN_CURVATURE_SPEED_MPS:
             self.curvature_1pm = yaw / v
         self.velocity = m
         self.fresh = True
+
+    def _unasked_stop(self, key: str, reason: str) -> None:
+        """Time the reports cannot account for: a fault, and the vehicle's command timeout
+        (brakes, ``VehicleStatus.command_timeout``, so the speed server e-stops and the move
+        server discards the command) until the stack restarts through a runwait."""
+        self._notice(key, reason)
+        if not self.timeout_latched:
+            self.timeout_latched = True
+            self.notices.append(Notice(kind="estop", source=self.name, code="command_timeout",
+                                       reason=f"{reason}: full brake until the stack restarts "
+                                              f"through a runwait"))
 
     def _notice(self, key: str, reason: str) -> None:
         if key not in self._told:
@@ -566,6 +640,10 @@ class XgvClient:
                 self.spss = msg
             elif topic == Topic.SPEED_STATE and isinstance(msg, SpeedState):
                 self.speed_state = msg
+                if self.timeout_latched and msg.state == "runwait" and not self._too_old():
+                    self.timeout_latched = False   # the stack's deliberate restart
+                    for key in ("stall", "report_gap", "report_age"):
+                        self._told.discard(key)
         return out
 
     def _allowed(self, msg: Any, sources: frozenset[str], out: list) -> bool:
@@ -580,11 +658,18 @@ class XgvClient:
         """Bus messages for what arrived since the last call (nothing while the link is down)."""
         cfg = self.config
         out: list[tuple[str, Any]] = []
+        last, self.sensor_step_s = self.sensor_step_s, now_s
+        if last is not None and now_s - last > RECEIVER_STALL_S and self.control:
+            # we were not stepped: the vehicle went that long without fresh commands
+            self.link_time.stalls += 1
+            self._unasked_stop("stall", f"the client was not stepped for {now_s - last:.3f} s "
+                                        f"(bound {RECEIVER_STALL_S:.3f} s)")
         if (self.link_up and self.heartbeat_s is not None
                 and now_s - self.heartbeat_s > cfg.heartbeat_timeout_s):
             self.link_up = False
             self.control = False
             self.connections.clear()
+            self.link_time.reset()   # the XGV may come back on another clock
             self._notice("heartbeat", f"no heartbeat from the XGV for {cfg.heartbeat_timeout_s} s")
         if self.pose_refused is not None and now_s - self.pose_s > ODOMETER_GAP_S:
             # refused fixes cost the stack its position: a fault. One refused fix among good
@@ -598,6 +683,7 @@ class XgvClient:
                  else self.mode is not None and self.discrete is not None)
         if not (fresh and self.link_up and known) or self.speed_implausible:
             return out
+        self._age_check(now_s, out)
         out.append((Topic.VEHICLE_STATUS, self.plain_status(now_s) if self.plain
                     else self.vehicle_status(now_s)))
         v = self.speed_mps
@@ -633,6 +719,41 @@ class XgvClient:
                 odometer_m=self.odometer_m, slip=False, contact=False)))
         return out
 
+    def _too_old(self) -> bool:
+        return self.report_age_s is not None and self.report_age_s > AGE_STOP_S
+
+    def _age_check(self, now_s: float, out: list[tuple[str, Any]]) -> None:
+        """The newest report's age: beyond ``AGE_DEGRADED_S`` the link is degraded (a fault
+        once per onset, and a max speed of ``AGE_DISTANCE_M`` per second of age); beyond
+        ``AGE_STOP_S`` an unasked stop, latched (``_unasked_stop``)."""
+        age_s = self.report_age_s
+        if age_s is None:
+            return
+        if age_s > AGE_STOP_S:
+            self._unasked_stop("report_age", f"Velocity State {age_s * 1000:.0f} ms old "
+                                             f"(bound {AGE_STOP_S * 1000:.0f} ms)")
+        if age_s > AGE_DEGRADED_S:
+            if now_s - self.degraded_s > AGE_HOLD_S:
+                self._told.discard("link_degraded")   # a new onset
+                self.degraded_age_s = 0.0
+            self._notice("link_degraded", f"Velocity State {age_s * 1000:.0f} ms old (bound "
+                                          f"{AGE_DEGRADED_S * 1000:.0f} ms): max speed lowered")
+            self.degraded_age_s = max(self.degraded_age_s, age_s)
+            self.degraded_s = now_s
+        elif now_s - self.degraded_s > AGE_HOLD_S:
+            self.degraded_age_s = 0.0
+        out.extend((Topic.NOTICE, n) for n in self.notices)
+        self.notices.clear()
+        if self.degraded_age_s > 0.0:
+            self.limit_sent = True
+            limit = AGE_DISTANCE_M / self.degraded_age_s
+        elif self.limit_sent:
+            limit = max(g.max_speed_mps for g in self.params.gears)   # kept fresh, no limit
+        else:
+            return
+        out.append((Topic.MAX_SPEED, MaxSpeed(source=LINK_SOURCE, speed_mps=limit,
+                                              issued_s=now_s)))
+
     def _speed_reads_low(self, now_s: float, pose: ReportLocalPose,
                          out: list[tuple[str, Any]]) -> bool:
         """Plain: Velocity State checked against the Global Pose (``SpeedCheck``); once it
@@ -654,16 +775,18 @@ class XgvClient:
         """Path length: the velocity integrated, or across a gap in the reports (a lost link)
         the straight line between the poses either side of it."""
         here = (pose.x_m or 0.0, pose.y_m or 0.0) if pose is not None else None
-        if self.step_s > ODOMETER_GAP_S and here is not None and self.odometer_at is not None:
+        if self.gap_in_step and here is not None and self.odometer_at is not None:
             # the chord, less what the position noise alone could make of it (the velocity
-            # either side says nothing about what happened in between)
+            # either side says nothing about what happened in between); both are lower bounds
+            # of the path, so the longer is taken
             noise = POSE_NOISE_SIGMAS * math.sqrt(2.0) * ((pose.position_rms_m or 0.0)
                                                            if pose is not None else 0.0)
             chord = math.hypot(here[0] - self.odometer_at[0], here[1] - self.odometer_at[1])
-            self.odometer_m += max(0.0, chord - noise)
+            self.odometer_m += max(0.0, chord - noise, self.step_m)
         else:
             self.odometer_m += self.step_m
         self.step_m = self.step_s = 0.0
+        self.gap_in_step = False
         self.odometer_at = here
 
     def safety_mode(self) -> str:
@@ -690,7 +813,8 @@ class XgvClient:
             engine_rpm=self._rpm(p.drive_gear),
             start_failed=False, traction_control=False, steer_pct=self.steer_pct,
             throttle_pct=throttle, brake_pct=brake, safety_mode=mode,
-            computer_speed=computer_speed, computer_steering=computer_steering)
+            computer_speed=computer_speed, computer_steering=computer_steering,
+            command_timeout=self.timeout_latched)
 
     def vehicle_status(self, now_s: float) -> VehicleStatus:
         p = self.params
@@ -711,7 +835,8 @@ class XgvClient:
             steer_pct=(w.steering_pct or 0.0) if w is not None else 0.0,
             throttle_pct=(w.throttle_pct or 0.0) if w is not None else 0.0,
             brake_pct=(w.brake_pct or 0.0) if w is not None else 0.0,
-            safety_mode=mode, computer_speed=computer_speed, computer_steering=computer_steering)
+            safety_mode=mode, computer_speed=computer_speed, computer_steering=computer_steering,
+            command_timeout=self.timeout_latched)
 
     def _rpm(self, gear_name: str) -> float:
         """Engine speed estimated from the speed in gear (JAUS 3.3 reports none)."""
@@ -788,6 +913,8 @@ class XgvClient:
             self.control = False
             self.control_queries = 0
             return []
+        if self.control_queries == 0:
+            self.control_query_s = now_s
         self.control_queries += 1
         self.next_control_query_s = now_s + CONTROL_QUERY_PERIOD_S
         return [self._to(QueryComponentControl(), self.target)]
@@ -801,6 +928,8 @@ class XgvClient:
 
     def _wrench(self) -> SetWrenchEffort:
         throttle, brake, _ = gate_pedals(self.pedals.throttle_pct, self.pedals.brake_pct)
+        if self.timeout_latched:
+            throttle, brake = 0.0, 100.0
         return self._to(SetWrenchEffort.xgv(throttle_pct=throttle, steering_pct=self.steer_pct,
                                             brake_pct=brake), self.pd)
 
@@ -812,13 +941,13 @@ class XgvClient:
         driving = (ss is not None and ss.state == "run" and not ss.estop and spss is not None
                    and spss.state == "run" and spss.fault == 0 and ss.gear in p.gear_names
                    and math.isfinite(spss.speed_mps) and math.isfinite(spss.accel_mps2))
-        if driving:
+        if driving and not self.timeout_latched:
             assert ss is not None and spss is not None
             direction = p.gear(ss.gear).direction
             speed = direction * min(max(spss.speed_mps, 0.0), 65.0)
             accel = min(max(spss.accel_mps2, MIN_ACCEL_MPS2), 100.0)
             return speed, accel, curvature
-        if ss is not None and ss.estop:
+        if self.timeout_latched or (ss is not None and ss.estop):
             return 0.0, ESTOP_DECEL_MPS2, curvature
         accel = DEFAULT_DECEL_MPS2
         if spss is not None and math.isfinite(spss.accel_mps2) and spss.accel_mps2 > 0.0:
@@ -862,4 +991,4 @@ class XgvClient:
             sequence=sequence))
 
 
-__all__ = ["XgvClient", "XgvClientConfig", "false_trips_per_hour"]
+__all__ = ["LINK_FAULTS", "XgvClient", "XgvClientConfig", "false_trips_per_hour"]

@@ -1,0 +1,161 @@
+"""Time from the source on the JAUS link: report time stamps, their age, gaps and loss. Sans-IO.
+
+The XGV stamps its reports (reference §5: ms, s, min, h, day of month, on its own clock). The
+client counts distance and time between reports from those stamps, not from when it read them,
+so a receiver that stalls and then reads a queue of reports at once loses nothing. Three things
+the stamps cannot account for are reported for the client to act on (docs/xgv.md, "Time from
+the source"):
+
+- a **gap** in the stamps longer than ``GAP_S`` (reports lost: what happened between is known
+  only as a chord between two poses);
+- a **receiver stall**: the receiver's own steps further apart than ``RECEIVER_STALL_S`` (its
+  clock follows the wall clock, ``run.sim``'s ``follow_wall_clock``): the vehicle went that
+  long without fresh commands, whatever the reports say;
+- an **old report**: its age beyond a bound (``XgvClient`` acts on ``AGE_DEGRADED_S`` and
+  ``AGE_STOP_S``).
+
+**Age.** The XGV's clock and ours differ by an unknown offset. Every report bounds it from below
+(a report is received after it was stamped: offset >= stamp - receipt); the largest such bound
+is the fastest delivery seen, so ``excess`` = receipt - stamp + that bound is the age beyond the
+fastest delivery. The fastest delivery itself is bounded by the shortest round trip measured
+(Query Component Control to its Report, ``round_trip``): age <= excess + shortest round trip.
+That upper bound is the report's ``age_s``: it never reads younger than the report is, and it
+sees a delay present from the first report as well as one that comes later.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from typing import Any, Final
+
+from overdrive.jaus import JausTimestamp
+
+DAY_S: Final = 86_400.0              # the stamp's hour/min/s/ms fields wrap daily; the day of
+                                     # month is not used (months differ in length): gaps are
+                                     # taken modulo a day, never longer than half of one
+GAP_S: Final = 0.25                  # reports missing longer than this (a lost link, not jitter;
+                                     # 25 periods at 100 Hz): the odometer takes the chord
+RECEIVER_STALL_S: Final = 0.2        # steps further apart than this: we were not stepped
+                                     # (SIGSTOP, a scheduler stall) for longer than the stack
+                                     # promises a stop after silence (SPSS watchdog, 200 ms)
+MAX_ROUND_TRIPS: Final = 64          # round trips kept (shortest of the recent ones)
+MAX_AGE_SAMPLES: Final = 200_000     # ages kept for the summary (over half an hour at 100 Hz)
+SEQUENCE_SPAN: Final = 0x10000       # JAUS header sequence numbers are u16
+
+
+def stamp_s(stamp: JausTimestamp | None) -> float | None:
+    """Seconds of the day of a reference §5 time stamp; None when absent or out of range (day 0
+    is an unset stamp: OpenJAUS's Velocity State sensor sends all zeros)."""
+    if stamp is None:
+        return None
+    if not (1 <= stamp.day <= 31 and 0 <= stamp.hour < 24 and 0 <= stamp.minute < 60 and 0 <= stamp.second < 60
+            and 0 <= stamp.millisecond < 1000):
+        return None
+    return (((stamp.hour * 60 + stamp.minute) * 60 + stamp.second) * 1000
+            + stamp.millisecond) / 1000.0
+
+
+def stamp_delta_s(later_s: float, earlier_s: float) -> float:
+    """``later - earlier`` across midnight (within half a day either way)."""
+    return (later_s - earlier_s + DAY_S / 2.0) % DAY_S - DAY_S / 2.0
+
+
+class SourceClock:
+    """One report stream's stamps, unwrapped onto a continuous source time (seconds)."""
+
+    __slots__ = ("last_raw_s", "source_s")
+
+    def __init__(self) -> None:
+        self.last_raw_s: float | None = None
+        self.source_s = 0.0
+
+    def advance(self, raw_s: float) -> float:
+        """The source time of a stamp; the step since the last one may be negative (reordered)."""
+        if self.last_raw_s is not None:
+            self.source_s += stamp_delta_s(raw_s, self.last_raw_s)
+        self.last_raw_s = raw_s
+        return self.source_s
+
+
+class LinkTime:
+    """Ages, gaps, receiver stalls, round trips and loss of the reports of one link."""
+
+    def __init__(self) -> None:
+        self.offset_lo_s: float | None = None   # XGV clock minus ours, lower bound
+        self.round_trips_s: list[float] = []
+        self.ages_s: list[float] = []
+        self.sequences: dict[tuple[Any, int], list[int]] = {}   # (source, code) -> counts
+        self.stalls = 0
+        self.sent_before = self.received_before = 0   # counts of connections before a reset
+
+    def reset(self) -> None:
+        """The link went down: the other end may come back on another clock, and its
+        connections with new sequence numbers (the counts so far are kept)."""
+        self.offset_lo_s = None
+        self.round_trips_s.clear()
+        for _, got, span in self.sequences.values():
+            self.sent_before += span
+            self.received_before += got
+        self.sequences.clear()
+
+    def round_trip(self, seconds: float) -> None:
+        if math.isfinite(seconds) and seconds >= 0.0:
+            self.round_trips_s.append(seconds)
+            del self.round_trips_s[:-MAX_ROUND_TRIPS]
+
+    def shortest_round_trip_s(self) -> float | None:
+        return min(self.round_trips_s) if self.round_trips_s else None
+
+    def arrival(self, raw_s: float, read_s: float) -> float:
+        """The age (upper bound) of a report stamped ``raw_s`` read at ``read_s`` (our clock,
+        any origin: only differences count)."""
+        seen = stamp_delta_s(raw_s, read_s % DAY_S)   # stamp - receipt, within half a day
+        lo = self.offset_lo_s
+        if lo is None or stamp_delta_s(seen, lo) > 0.0:
+            self.offset_lo_s = lo = seen
+        age_s = stamp_delta_s(lo, seen) + (self.shortest_round_trip_s() or 0.0)
+        if len(self.ages_s) < MAX_AGE_SAMPLES:
+            self.ages_s.append(age_s)
+        return age_s
+
+    def sequence(self, source: Any, code: int, number: int) -> None:
+        """Count a service-connection report by its sequence number (loss = numbers skipped)."""
+        entry = self.sequences.get((source, code))
+        if entry is None:
+            self.sequences[(source, code)] = [number, 1, 1]   # last, received, sent
+            return
+        step = (number - entry[0]) % SEQUENCE_SPAN
+        if 0 < step < SEQUENCE_SPAN // 2:   # newer; an older or repeated one is not counted
+            entry[0] = number
+            entry[1] += 1
+            entry[2] += step
+
+    def report(self) -> dict[str, Any]:
+        """``summary.json`` ``link``: report age in ms (median, p95, max), round trip in ms
+        (shortest, last), and the reports the XGV sent (by sequence number) against those
+        received."""
+        sent, received = self.sent_before, self.received_before
+        for _, got, span in self.sequences.values():
+            sent += span
+            received += got
+        ages = sorted(self.ages_s)
+
+        def ms(value: float | None) -> float | None:
+            return None if value is None else round(1000.0 * value, 1)
+
+        p95 = ages[min(len(ages) - 1, math.ceil(0.95 * len(ages)) - 1)] if ages else None
+        return {
+            "latency_ms": {"median": ms(statistics.median(ages)) if ages else None,
+                           "p95": ms(p95), "max": ms(ages[-1]) if ages else None,
+                           "samples": len(ages)},
+            "round_trip_ms": {"shortest": ms(self.shortest_round_trip_s()),
+                              "last": ms(self.round_trips_s[-1]) if self.round_trips_s
+                              else None},
+            "loss": {"sent": sent, "received": received,
+                     "lost_fraction": round((sent - received) / sent, 4) if sent else None},
+            "receiver_stalls": self.stalls,   # counted by the client (its own step gaps)
+        }
+
+
+__all__ = ["GAP_S", "RECEIVER_STALL_S", "LinkTime", "SourceClock", "stamp_delta_s", "stamp_s"]
