@@ -39,7 +39,6 @@ GAP_S: Final = 0.25                  # reports missing longer than this (a lost 
 RECEIVER_STALL_S: Final = 0.2        # steps further apart than this: we were not stepped
                                      # (SIGSTOP, a scheduler stall) for longer than the stack
                                      # promises a stop after silence (SPSS watchdog, 200 ms)
-MAX_ROUND_TRIPS: Final = 64          # round trips kept (shortest of the recent ones)
 MAX_AGE_SAMPLES: Final = 200_000     # ages kept for the summary (over half an hour at 100 Hz)
 SEQUENCE_SPAN: Final = 0x10000       # JAUS header sequence numbers are u16
 
@@ -83,7 +82,11 @@ class LinkTime:
 
     def __init__(self) -> None:
         self.offset_lo_s: float | None = None   # XGV clock minus ours, lower bound
-        self.round_trips_s: list[float] = []
+        # the shortest round trip since the link came up, not of a recent window: any round
+        # trip bounds the fastest delivery behind ``offset_lo_s`` (kept since then too), and a
+        # window would forget the short ones once a delay sets in and take 2x the delay for it
+        self.shortest_round_trip: float | None = None
+        self.last_round_trip: float | None = None
         self.ages_s: list[float] = []
         self.sequences: dict[tuple[Any, int], list[int]] = {}   # (source, code) -> counts
         self.stalls = 0
@@ -93,7 +96,7 @@ class LinkTime:
         """The link went down: the other end may come back on another clock, and its
         connections with new sequence numbers (the counts so far are kept)."""
         self.offset_lo_s = None
-        self.round_trips_s.clear()
+        self.shortest_round_trip = self.last_round_trip = None
         for _, got, span in self.sequences.values():
             self.sent_before += span
             self.received_before += got
@@ -101,11 +104,12 @@ class LinkTime:
 
     def round_trip(self, seconds: float) -> None:
         if math.isfinite(seconds) and seconds >= 0.0:
-            self.round_trips_s.append(seconds)
-            del self.round_trips_s[:-MAX_ROUND_TRIPS]
+            self.last_round_trip = seconds
+            if self.shortest_round_trip is None or seconds < self.shortest_round_trip:
+                self.shortest_round_trip = seconds
 
     def shortest_round_trip_s(self) -> float | None:
-        return min(self.round_trips_s) if self.round_trips_s else None
+        return self.shortest_round_trip
 
     def arrival(self, raw_s: float, read_s: float) -> float:
         """The age (upper bound) of a report stamped ``raw_s`` read at ``read_s`` (our clock,
@@ -150,7 +154,7 @@ class LinkTime:
                            "p95": ms(p95), "max": ms(ages[-1]) if ages else None,
                            "samples": len(ages)},
             "round_trip_ms": {"shortest": ms(self.shortest_round_trip_s()),
-                              "last": ms(self.round_trips_s[-1]) if self.round_trips_s
+                              "last": ms(self.last_round_trip) if self.last_round_trip is not None
                               else None},
             "loss": {"sent": sent, "received": received,
                      "lost_fraction": round((sent - received) / sent, 4) if sent else None},
