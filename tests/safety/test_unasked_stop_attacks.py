@@ -75,3 +75,19 @@ def test_the_judge_flags_a_set_speed_run_driving_on_after_a_speed_server_restart
     assert moved_m > 10.0                              # ground truth: it drove on by itself
     rules = {d["rule"] for d in result.summary["violation_details"]}
     assert "unintended_motion" in rules, (moved_m, result.summary["violations"])
+
+
+@pytest.mark.xfail(strict=True, reason="a STOP waits in the stalled move server's inbox; the "
+                   "driving module drives on under its last authorization meanwhile")
+@pytest.mark.parametrize("for_s", [1.0, 2.0])
+def test_a_stop_issued_while_the_move_server_is_stalled_still_stops_within_its_distance(
+        for_s: float) -> None:
+    """8 m/s, the move server stalls at 7.0 s, the planner's STOP comes at 7.05 s. Found: the
+    vehicle passes the STOP's end (the judge's authorization invariant) by 6.02 m (1 s stall)
+    and 9.69 m (2 s): the STOP acts only when the move server resumes. The same STOP after the
+    stall (8.9 s) is honoured with no violation."""
+    result = run("escape-hybrid", [move(0.5, DISTANCE_M, 8.0), stall(7.0, "move", for_s),
+                                   {"at_s": 7.05, "stop": {}}], duration_s=25.0)
+    overruns = [d for d in result.summary["violation_details"]
+                if d["rule"].startswith("authorization")]
+    assert overruns == [], result.summary["violations"]
