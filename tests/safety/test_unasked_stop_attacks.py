@@ -91,3 +91,23 @@ def test_a_stop_issued_while_the_move_server_is_stalled_still_stops_within_its_d
     overruns = [d for d in result.summary["violation_details"]
                 if d["rule"].startswith("authorization")]
     assert overruns == [], result.summary["violations"]
+
+
+@pytest.mark.xfail(strict=True, reason="the judge does not start its unintended-motion rule on "
+                   "an engine stall (1009), though the speed server counts it as an unasked stop")
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_the_judge_flags_a_set_speed_run_driving_on_after_an_engine_stall(preset: str) -> None:
+    """A set_speed run (the scenario repeats one ``run``); the engine stalls at 10 s. Found: the
+    vehicle comes to rest (11.06 s escape, 11.25 s ranger), the speed server restarts the
+    engine, goes through its runwait and drives the unchanged old run on: 152 m (escape), 127 m
+    (ranger) by 40 s, with no new command, no e-stop, no violation. ``SpeedState.unasked_stops`` counts
+    the stall (docs/speed-server.md: a client latches on any rise); the client here does not,
+    and the judge must say so as it does for a watchdog stop."""
+    gear = PRESETS[preset].drive_gear
+    result = run(preset, [{"at_s": 1.0, "set_speed": {"speed_mps": 8.0, "accel_mps2": 1.5,
+                                                      "gear": gear, "state": "run"}},
+                          {"at_s": 10.0, "engine_stall": {}}], duration_s=40.0)
+    moved_m = travel_m(result, first_rest_s(result, 10.0))
+    assert moved_m > 10.0                              # ground truth: it drove on by itself
+    rules = {d["rule"] for d in result.summary["violation_details"]}
+    assert "unintended_motion" in rules, (moved_m, result.summary["violations"])
