@@ -111,3 +111,23 @@ def test_the_judge_flags_a_set_speed_run_driving_on_after_an_engine_stall(preset
     assert moved_m > 10.0                              # ground truth: it drove on by itself
     rules = {d["rule"] for d in result.summary["violation_details"]}
     assert "unintended_motion" in rules, (moved_m, result.summary["violations"])
+
+
+@pytest.mark.xfail(strict=True, reason="the move server does not treat its own stall as an "
+                   "interruption: on resume it drives the old MOVE on from where the driving "
+                   "module stopped the vehicle")
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("for_s", [3.0, 5.0])
+def test_after_a_move_server_stall_stopped_the_vehicle_nothing_moves_until_a_new_command(
+        preset: str, for_s: float) -> None:
+    """4 m/s, the move server stalls at 5 s. The driving module uses up the authorization it
+    holds and stops the vehicle (escape: at rest 7.69 s at 17.43 m): a stop nobody asked for.
+    Found: when the move server resumes (8 s, 10 s) it drives the old MOVE on by itself: 36.2 m
+    after 0.31 s at rest, 28.4 m after 2.31 s at rest (ranger 36.5 / 28.8 m), with no new
+    command, no notice and no violation. H59: once stopped by a stall, the command in force is
+    discarded and the vehicle stays until a new command."""
+    result = run(preset, [move(0.5, DISTANCE_M, reachable_mps(preset, 4.0)),
+                          stall(5.0, "move", for_s)], duration_s=5.0 + for_s + 20.0)
+    rest_s = first_rest_s(result, 5.0)
+    assert rest_s < 5.0 + for_s                        # at rest during the stall (ground truth)
+    assert travel_m(result, rest_s) < 0.01, (rest_s, travel_m(result, rest_s))
