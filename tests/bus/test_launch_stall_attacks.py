@@ -11,10 +11,13 @@ without the forger: hung reported, exit 1."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from overdrive.bus.access import owners
 from overdrive.messages import NodeTick, Topic
+from tests.bus.fault_launches import Fault, run_fault
 from tests.bus.test_bus_access import USERS, _delivered, _open, speed_node  # noqa: F401
 
 FORGED = NodeTick(process="move", seq=1)
@@ -49,12 +52,11 @@ def test_a_planner_or_observer_cannot_forge_a_liveness_tick_in_the_locked_down_c
 @pytest.mark.xfail(strict=True, reason="a resumed move server drives the old MOVE on after the "
                    "driving module stopped the vehicle at the end of its authorization")
 def test_a_move_server_stalled_until_the_vehicle_stands_never_drives_the_old_move_on(
-        run_dir) -> None:  # noqa: ANN001
+        run_dir: Path) -> None:
     """Real processes: a 60 m MOVE at 4 m/s, the move server SIGSTOPped 5 s at 8 s (the sweep
     in docs/multiprocess.md stops at 2 s, before the vehicle stands). Found (--stall move@5:5,
     the same MOVE): hang reported, exit 1, but the vehicle at rest at 7.67 s (17.41 m) moved
     again at 10.39 s by itself, 27.9 m more, no new command, no interruption."""
-    from tests.bus.fault_launches import Fault, run_fault
     outcome, summary = run_fault(Fault("move", "stall", 4.0, 5.0), run_dir / "run")
     assert outcome.rest_after_fault_s is not None, outcome     # it stood during the stall
     assert outcome.travel_after_rest_m <= 0.02, (outcome, summary["violations"])
