@@ -12,6 +12,7 @@ import msgspec
 
 from overdrive.runtime.lockstep import Node
 from overdrive.runtime.xgv_link import (
+    JausFault,
     Address,
     ClientPort,
     LoopbackLink,
@@ -90,15 +91,16 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
     return nodes
 
 
-def jaus_faults(scenario: Scenario) -> list[tuple[str, float, float, float, float]]:
-    """The scenario's faults on channel ``jaus``: (kind, start, duration, delay, fraction)."""
+def jaus_faults(scenario: Scenario) -> list[JausFault]:
+    """The scenario's faults on channel ``jaus`` (each one way or both, ``direction``)."""
     found = []
     for event in scenario.events:
         body = event.body
         if (event.kind in ("drop", "loss", "delay", "duplicate", "reorder")
                 and body.channel == "jaus"):
-            found.append((event.kind, event.at_s, body.for_s, getattr(body, "delay_s", 0.0),
-                          getattr(body, "fraction", 1.0)))
+            found.append(JausFault(event.kind, event.at_s, body.for_s,
+                                   getattr(body, "delay_s", 0.0), getattr(body, "fraction", 1.0),
+                                   body.direction or "both"))
     return found
 
 

@@ -10,7 +10,9 @@ this module carries their datagrams and puts them on the bus:
   the other sent (waiting for loopback delivery if needed), so nothing depends on timing, and
   takes datagrams only from the other end's address (others are dropped and counted). The
   scenario's faults on channel ``jaus`` (drop, loss, delay, duplicate, reorder) act on the
-  datagrams, in both directions (loss drawn from the scenario's seed).
+  datagrams, in both directions or one (``JausFault.direction``: ``to_vehicle``, the stack's
+  datagrams to the XGV; ``from_vehicle``, the XGV's to the stack); loss drawn from the
+  scenario's seed.
 - ``UdpPort``: one non-blocking socket towards a remote XGV (``overdrive drive``).
 - Nodes, in tick order: ``XgvSimNode`` ("xgv": the simulated XGV; it also publishes what an
   XGV does not report over JAUS: the simulator's ground truth and the forward radar, an
@@ -29,7 +31,7 @@ import select
 import socket
 import time
 from collections.abc import Callable, Sequence
-from typing import Any, Final, Literal
+from typing import Any, Final, Literal, NamedTuple
 
 from overdrive.bus.faults import ChannelFaults, Window
 from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
@@ -45,21 +47,39 @@ STALL_BUFFER_BYTES: Final = 4 << 20  # as xgv-sim's: ~3 s of the XGV's reports (
                                      # net.core.rmem_max)
 _TO = {"xgv": "client", "client": "xgv"}
 Side = Literal["xgv", "client"]
+Direction = Literal["both", "to_vehicle", "from_vehicle"]
+_RECEIVERS: Final[dict[str, tuple[str, ...]]] = {
+    "both": ("xgv", "client"), "to_vehicle": ("xgv",), "from_vehicle": ("client",)}
+"""The ends whose incoming datagrams a fault of each direction acts on."""
+
+
+class JausFault(NamedTuple):
+    """One fault window on the JAUS link (a scenario event on channel ``jaus``)."""
+
+    kind: str
+    start_s: float
+    for_s: float
+    delay_s: float = 0.0
+    fraction: float = 1.0
+    direction: Direction = "both"
 
 
 class LoopbackLink:
     """Both ends of the JAUS link of one lock-step run (see the module docstring)."""
 
     def __init__(self, transport: Literal["udp", "memory"] = "udp",
-                 faults: Sequence[tuple[str, float, float, float]
-                                  | tuple[str, float, float, float, float]] = (),
+                 faults: Sequence[JausFault | tuple[Any, ...]] = (),
                  seed: int = 0) -> None:
         self.transport = transport
-        self.faults = ChannelFaults(seed=seed)   # (kind, start, duration, delay[, fraction])
-        for kind, start_s, for_s, delay_s, *fraction in faults:
-            for side in _TO:
+        self.faults = ChannelFaults(seed=seed)
+        for fault in faults:
+            f = JausFault(*fault)
+            if f.direction not in _RECEIVERS:
+                raise ValueError(f"JAUS fault direction: one of {tuple(_RECEIVERS)}, got "
+                                 f"{f.direction!r}")
+            for side in _RECEIVERS[f.direction]:
                 self.faults.windows.setdefault(f"jaus>{side}", []).append(
-                    Window(kind, start_s, start_s + for_s, delay_s, *fraction))
+                    Window(f.kind, f.start_s, f.start_s + f.for_s, f.delay_s, f.fraction))
         self.sockets: dict[str, socket.socket] = {}
         self.addresses: dict[str, Address] = {"xgv": ("memory", 1), "client": ("memory", 2)}
         self.queues: dict[str, list[tuple[bytes, Address]]] = {"xgv": [], "client": []}
@@ -305,4 +325,4 @@ class XgvCommandNode:
         self.port.close()
 
 
-__all__ = ["ClientPort", "LoopbackLink", "UdpPort", "XgvCommandNode", "XgvSensorNode", "XgvSimNode"]
+__all__ = ["ClientPort", "JausFault", "LoopbackLink", "UdpPort", "XgvCommandNode", "XgvSensorNode", "XgvSimNode"]

@@ -112,6 +112,10 @@ class ActuatorsSpec(Spec, frozen=True):
 
 Channel = Literal["set_speed", "steering", "pedals", "radar", "gps", "imu", "wheel_speed",
                   "speed_state", "move", "advance", "max_speed", "jaus"]
+LinkDirection = Literal["both", "to_vehicle", "from_vehicle"]
+"""Which way a fault on channel ``jaus`` acts: ``to_vehicle`` the stack's datagrams to the XGV
+only, ``from_vehicle`` the XGV's to the stack only (a link cut one way: the XGV hears nothing
+while the stack still hears it, or the reverse). Only channel ``jaus`` has directions."""
 
 
 class DropSpec(Spec, frozen=True):
@@ -119,12 +123,14 @@ class DropSpec(Spec, frozen=True):
 
     channel: Channel
     for_s: Duration
+    direction: LinkDirection | None = None   # channel jaus only; None: both ways
 
 
 class DelaySpec(Spec, frozen=True):
     channel: Channel
     for_s: Duration
     delay_s: Annotated[float, msgspec.Meta(gt=0.0, le=60.0)]
+    direction: LinkDirection | None = None
 
 
 class LossSpec(Spec, frozen=True):
@@ -134,6 +140,7 @@ class LossSpec(Spec, frozen=True):
     channel: Channel
     for_s: Duration
     fraction: Annotated[float, msgspec.Meta(gt=0.0, le=1.0)]
+    direction: LinkDirection | None = None
 
 
 class SensorFaultSpec(Spec, frozen=True):
@@ -433,6 +440,11 @@ def parse_scenario(data: Any, source: str = "<scenario>",
             raise ScenarioError(source, f"events[{i}].{event.kind}.source",
                                 f"{RESERVED_SOURCE!r} is reserved for the move server's own "
                                 "authorizations and limits; name the source otherwise")
+        if (isinstance(event.body, DropSpec | DelaySpec | LossSpec)
+                and event.body.direction is not None and event.body.channel != "jaus"):
+            raise ScenarioError(source, f"events[{i}].{event.kind}.direction",
+                                f"only channel jaus has directions (a bus channel "
+                                f"{event.body.channel!r} carries one way already)")
         if event.at_s > spec.duration_s:
             raise ScenarioError(source, f"events[{i}].at_s",
                                 f"{event.at_s} s is after the end of the run (duration_s {spec.duration_s})")
