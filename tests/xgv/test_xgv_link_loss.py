@@ -101,6 +101,14 @@ def test_a_heartbeat_timeout_that_is_not_a_finite_bound_is_refused(bad: float) -
         XgvClientConfig(heartbeat_timeout_s=bad)
 
 
+@pytest.mark.parametrize("bad", [PEER_TIMEOUT_S, PEER_TIMEOUT_S + 0.01, 30.0])
+def test_a_heartbeat_timeout_the_xgv_outlasts_is_refused(bad: float) -> None:
+    """The client must drop the session before the XGV forgets it (its 5 s peer timeout)."""
+    with pytest.raises(ValueError, match="peer timeout"):
+        XgvClientConfig(heartbeat_timeout_s=bad)
+    assert XgvClientConfig(heartbeat_timeout_s=PEER_TIMEOUT_S - 0.01).heartbeat_timeout_s < 5.0
+
+
 @pytest.mark.parametrize("fraction", [0.0, 1.5, float("nan"), "half"])
 def test_a_loss_event_outside_0_to_1_is_refused(fraction: Any) -> None:
     with pytest.raises(ScenarioError, match="fraction"):

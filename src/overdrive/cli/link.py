@@ -11,13 +11,14 @@ import click
 
 from overdrive.bus.link_faults import MAX_DELAY_S, LinkFaultSpec, parse_cut
 from overdrive.runtime.link_proxy import LinkProxy
+from overdrive.runtime.udp import parse_address
 
 
-def _address(text: str, what: str) -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise click.UsageError(f"{what}: expected HOST:PORT with a port 0..65535, got {text!r}")
-    return host, int(port)
+def _address(text: str, what: str, *, bind: bool) -> tuple[str, int]:
+    try:
+        return parse_address(text, what, bind=bind)
+    except ValueError as exc:
+        raise click.UsageError(str(exc)) from None
 
 
 def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
@@ -60,8 +61,9 @@ def link_proxy(listen: str, to: str, upstream: str, loss: float, delay_ms: float
                              seed=seed)
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
-    listen_at, target, bind = (_address(listen, "--listen"), _address(to, "--to"),
-                               _address(upstream, "--from"))
+    listen_at, target, bind = (_address(listen, "--listen", bind=True),
+                               _address(to, "--to", bind=False),
+                               _address(upstream, "--from", bind=True))
     try:
         proxy = LinkProxy(listen_at, target, spec, bind)
     except OSError as exc:   # a port in use, an address not ours, a name that does not resolve

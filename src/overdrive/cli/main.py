@@ -180,13 +180,13 @@ def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_
     raise SystemExit(result.exit_code)
 
 
-def _host_port(text: str, default_port: int, what: str) -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
-    if not sep:
-        host, port = text, str(default_port)
-    if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
-        fail_usage(f"{what}: expected HOST or HOST:PORT with a port 0..65535, got {text!r}")
-    return host, int(port)
+def _host_port(text: str, default_port: int, what: str, *, bind: bool) -> tuple[str, int]:
+    from overdrive.runtime.udp import parse_address
+    try:
+        return parse_address(text, what, bind=bind, default_port=default_port)
+    except ValueError as exc:
+        fail_usage(str(exc))
+        raise   # unreachable: fail_usage exits
 
 
 @main.command("xgv-sim")
@@ -257,8 +257,8 @@ def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool
     from overdrive.run.sim import default_out_dir
     from overdrive.scenario.schema import ScenarioError, load_scenario
 
-    remote = _host_port(xgv, 3794, "--xgv")
-    local = _host_port(bind, 0, "--bind")
+    remote = _host_port(xgv, 3794, "--xgv", bind=False)
+    local = _host_port(bind, 0, "--bind", bind=True)
     try:
         loaded = load_scenario(scenario)
         problem = plain_profile_problem(loaded) if profile == "plain" else None

@@ -8,6 +8,26 @@ from __future__ import annotations
 import socket
 
 Address = tuple[str, int]
+MAX_PORT = 65535                     # UDP ports are 16 bits; 0 asks the system for a free one
+
+
+def parse_address(text: str, what: str, *, bind: bool, default_port: int | None = None) -> Address:
+    """``HOST:PORT`` (or ``HOST`` when ``default_port`` is given) as an address, or
+    ``ValueError`` with a one-line reason naming ``what``. The port is ASCII digits only
+    (``str.isdigit`` also takes superscripts such as "²", which ``int`` refuses), 1..65535
+    for a destination, 0..65535 for a ``bind`` (0: any free port)."""
+    low = 0 if bind else 1
+    form = "HOST or HOST:PORT" if default_port is not None else "HOST:PORT"
+    reason = f"{what}: expected {form} with a port {low}..{MAX_PORT}, got {text!r}"
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        if default_port is None:
+            raise ValueError(reason)
+        host, port = text, str(default_port)
+    if (not host or not host.isprintable() or not port.isascii() or not port.isdigit()
+            or len(port) > 5 or not low <= int(port) <= MAX_PORT):
+        raise ValueError(reason)
+    return host, int(port)
 
 
 def open_udp(bind: Address, *, receive_buffer_bytes: int | None = None,

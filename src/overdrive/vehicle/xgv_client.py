@@ -120,7 +120,7 @@ from overdrive.vehicle.plain_jaus import (
     SpeedCheck,
     safety_mode_from_status,
 )
-from overdrive.vehicle.xgv import gear_codes, gear_from_code
+from overdrive.vehicle.xgv import PEER_TIMEOUT_S, gear_codes, gear_from_code
 
 ESTOP_DECEL_MPS2: Final = 9.0        # speed server e-stopped: stop at the strongest preset brake
 DEFAULT_DECEL_MPS2: Final = 2.5      # not in run and no SPSS rate known: a pause-like stop
@@ -257,6 +257,11 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
             raise ValueError(f"XgvClientConfig.heartbeat_timeout_s: above "
                              f"{HEARTBEAT_QUERY_AFTER_S} s (an overdue heartbeat is asked for "
                              f"then), got {self.heartbeat_timeout_s!r}")
+        if self.heartbeat_timeout_s >= PEER_TIMEOUT_S:
+            raise ValueError(f"XgvClientConfig.heartbeat_timeout_s: under the XGV's "
+                             f"{PEER_TIMEOUT_S} s peer timeout (xgv.PEER_TIMEOUT_S: the client "
+                             f"must drop the session before the XGV forgets it), got "
+                             f"{self.heartbeat_timeout_s!r}")
 
 
 def false_trips_per_hour(loss: float, timeout_s: float = HEARTBEAT_TIMEOUT_S) -> dict[str, float]:
