@@ -50,7 +50,7 @@ def test_port_0_is_only_for_a_bind_and_a_default_port_fills_a_bare_host() -> Non
     assert parse_address("0.0.0.0:0", "--bind", bind=True) == ("0.0.0.0", 0)
     assert parse_address("xgv", "--xgv", bind=False, default_port=3794) == ("xgv", 3794)
     assert parse_address("10.0.0.2:65535", "--to", bind=False) == ("10.0.0.2", 65535)
-    with pytest.raises(ValueError, match="port 1..65535"):
+    with pytest.raises(ValueError, match=r"port 1\.\.65535"):
         parse_address("10.0.0.2:0", "--xgv", bind=False, default_port=3794)
 
 

@@ -12,9 +12,9 @@ import msgspec
 
 from overdrive.runtime.lockstep import Node
 from overdrive.runtime.xgv_link import (
-    JausFault,
     Address,
     ClientPort,
+    JausFault,
     LoopbackLink,
     UdpPort,
     XgvCommandNode,
