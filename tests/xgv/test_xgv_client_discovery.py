@@ -80,7 +80,7 @@ def test_a_reject_before_openjaus_knows_us_is_retried_quietly() -> None:
     # after the grace, or once registered, a Reject is a fault as before
     deliver(client, ConfirmComponentControl(response=0), PD, ME, REGISTRATION_GRACE_S)
     deliver(client, RejectComponentControl(), PD, ME, REGISTRATION_GRACE_S + 0.01)
-    assert [n.code for n in client.notices] == ["xgv_control"]
+    assert [n.code for n in client.notices] == ["xgv_control", "command_timeout"]   # latched
 
 
 def test_without_the_node_manager_role_nothing_is_answered() -> None:

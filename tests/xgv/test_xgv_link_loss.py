@@ -233,7 +233,9 @@ def test_a_cut_at_cruise_never_overruns_or_speeds_and_a_stop_latches(
     summary = result.summary
     # a gap in the stamps longer than 0.25 s is a link fault the run reports (no silent pass)
     gap = "link fault xgv_report_gap"
-    assert_safe(trace, summary, expected=(gap,))
+    # wrench: the XGV paused on its own 0.5 s command timeout meanwhile and says so when the
+    # reports are back (an error pause, also a link fault)
+    assert_safe(trace, summary, expected=(gap, "link fault xgv_error_pause"))
     assert any(m.startswith(gap) for m in summary["violations"]) == (for_s > 0.25)
     assert "xgv_heartbeat" not in codes(summary, "fault")   # 2 s < 4.5 s: the link is not lost
     if for_s < 0.2:

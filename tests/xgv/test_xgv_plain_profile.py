@@ -448,6 +448,6 @@ def test_a_reject_just_after_openjaus_asked_our_configuration_is_retried(
     deliver(client, RejectComponentControl(), PD, 0.01 + after_s)
     assert not client.control
     faults = [n.code for n in client.notices]
-    assert faults == ([] if quiet else ["xgv_control"])
+    assert faults == ([] if quiet else ["xgv_control", "command_timeout"])   # a stop, latched
     if quiet:   # asked again at once (a real loss waits for the retry period, as before)
         assert any(isinstance(m, RequestComponentControl) for m in sent(client, 0.01 + after_s))
