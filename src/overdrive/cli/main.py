@@ -19,6 +19,7 @@ from overdrive.cli.jaus import jaus
 from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
 from overdrive.cli.summary import print_summary
+from overdrive.runtime.udp import parse_address
 
 EXIT_OK, EXIT_VIOLATION, EXIT_USAGE = 0, 1, 2
 
@@ -181,7 +182,6 @@ def move_server(simulate: bool, vehicle: str, seed: int, duration_s: float, out_
 
 
 def _host_port(text: str, default_port: int, what: str, *, bind: bool) -> tuple[str, int]:
-    from overdrive.runtime.udp import parse_address
     try:
         return parse_address(text, what, bind=bind, default_port=default_port)
     except ValueError as exc:
