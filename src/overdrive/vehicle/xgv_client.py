@@ -27,7 +27,12 @@ Speed). Safety: every safety mode but drive-by-wire pauses the stack (the move s
 speed at 0, the speed server holds the brakes as ``computer_speed`` is false); in e-stop
 disable the XGV stops the engine, which the speed server takes as a stall (a fault). When the
 XGV's heartbeat is missing for ``heartbeat_timeout_s`` the client reports a fault and stops
-publishing sensors, so the speed server's sensor watchdog latches an emergency stop.
+publishing sensors, so the speed server's sensor watchdog latches an emergency stop. Commands
+that do not reach the XGV while its reports still do (a link cut one way) are read from its
+reports: in motion profile its speed falling away from the commanded motion (``FollowCheck``,
+its motion lapsed), in either mode its error pause (its own command timeout); these, and a
+control we held being lost, are unasked stops latched until a runwait (``_unasked_stop``), and
+without control the XGV profile reports a software pause (docs/xgv.md, "A link cut one way").
 
 ``profile="plain"`` reads a plain JAUS 3.3 vehicle (OpenJAUS's ojVehicleSim) instead:
 safety mode from the PD's Report Component Status, pose from Report Global Pose on a local
@@ -232,6 +237,8 @@ class XgvClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_
     authority: int = 6                    # reference §7: "authority 6"
     report_rate_hz: float = 100.0         # service connections: the stack's 10 ms period
     heartbeat_timeout_s: float = HEARTBEAT_TIMEOUT_S   # no heartbeat this long: link lost
+                                          # (above HEARTBEAT_QUERY_AFTER_S, under the XGV's
+                                          # peer timeout xgv.PEER_TIMEOUT_S)
     retry_s: float = 0.5                  # requests and queries not answered are repeated
     discrete_refresh_s: float = 0.5       # Set Discrete Devices repeated (a lost one heals)
     motion_duration_s: float = 0.4        # reference §6: "clients send 400 ms and refresh it"
