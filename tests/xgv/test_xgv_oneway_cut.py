@@ -23,6 +23,7 @@ from overdrive.vehicle.xgv_client import (
     FOLLOW_MARGIN_MPS,
     FollowCheck,
     XgvClient,
+    XgvClientConfig,
 )
 from tests.xgv.test_xgv_link_loss import LIMIT_MPS, MOVE_M, SPEED_TOLERANCE_MPS, codes, run, truth
 
@@ -145,3 +146,21 @@ def test_a_one_way_fault_acts_on_that_direction_only() -> None:
     back.send("xgv", b"to the client", 0.5)
     assert [d for d, _ in back.receive("xgv", 0.5)] == [b"to the xgv"]
     assert back.receive("client", 0.5) == []
+
+
+def test_a_driver_holding_the_speed_is_not_the_xgv_ignoring_its_command() -> None:
+    """Partial mode manual-speed: the human slows the vehicle, no unasked stop."""
+    client = XgvClient(PRESETS["escape-hybrid"], XgvClientConfig(control="motion-profile"))
+    client.control = True
+    client.mode = ReportVehicleMode(control_mode=3, ready_mode=2, safety_mode=1,
+                                    partial_mode_overrides=2)
+    client.motion_command = lambda: (8.0, 1.0, 0.0)   # type: ignore[method-assign]
+    for v in (8.0, 7.0, 5.0, 2.0, 0.0):
+        client.speed_mps = v
+        client._follow_check()
+    assert not client.timeout_latched
+    client.mode = ReportVehicleMode(control_mode=3, ready_mode=2, safety_mode=1)
+    for v in (8.0, 7.0, 5.0):
+        client.speed_mps = v
+        client._follow_check()
+    assert client.timeout_latched

@@ -809,8 +809,9 @@ class XgvClient:
     def _follow_check(self) -> None:
         """Motion profile: the XGV slowing against the motion commanded is an unasked stop
         (``FollowCheck``), checked while we hold control in drive-by-wire."""
-        driving = (self.control and not self.timeout_latched
-                   and self.safety_mode() == "drive-by-wire")
+        manual_speed = bool(self.mode is not None and self.mode.partial_mode_overrides & 2)
+        driving = (self.control and not self.timeout_latched and not manual_speed
+                   and self.safety_mode() == "drive-by-wire")   # the computer has the speed
         commanded_mps = self.motion_command()[0] if driving else 0.0
         reason = self.follow.check(commanded_mps, self.speed_mps)
         if reason is not None:
