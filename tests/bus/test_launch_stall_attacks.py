@@ -23,8 +23,6 @@ from tests.bus.test_bus_access import USERS, _delivered, _open, speed_node  # no
 FORGED = NodeTick(process="move", seq=1)
 
 
-@pytest.mark.xfail(strict=True, reason="process/tick is owned by nobody: every mesh user may "
-                   "put a tick in any process's name")
 def test_only_the_run_processes_may_publish_liveness_ticks() -> None:
     """The generated access rules deny every topic a user does not own; ``process/tick`` must
     be one of them, owned by the processes of a launch (nodes and gate), not the planner's or a
@@ -35,8 +33,6 @@ def test_only_the_run_processes_may_publish_liveness_ticks() -> None:
 
 
 @pytest.mark.wallclock
-@pytest.mark.xfail(strict=True, reason="config/zenoh-locked-down.json5 has no rule for "
-                   "process/tick (default allow): a planner may forge a node's liveness tick")
 @pytest.mark.parametrize("user", ["planner", "observer"])
 def test_a_planner_or_observer_cannot_forge_a_liveness_tick_in_the_locked_down_config(
         speed_node, user: str) -> None:  # noqa: F811

@@ -838,14 +838,16 @@ class Launch:
             liveness = self.liveness = Liveness(
                 [*(NODE_CLASSES[n] for n in self.names), *([GATE] if self.gate is not None else [])])
 
-            def tick(topic: str, msg: Any, sent_s: float) -> None:
-                """Liveness ticks, by their send time on the run's axis (``runtime.supervision``)."""
-                if topic == Topic.TICK and isinstance(msg, NodeTick):
+            def tick(topic: str, msg: Any, sent_s: float, sender: str) -> None:
+                """Liveness ticks, by their send time on the run's axis (``runtime.supervision``);
+                only a process's own: a tick in another's name than its sender's is ignored (the
+                access rules keep others off the key, this keeps the senders honest)."""
+                if topic == Topic.TICK and isinstance(msg, NodeTick) and msg.process == sender:
                     for finding in liveness.tick(msg.process, msg.seq, sent_s - epoch,
                                                  self.bus.clock() - epoch):
                         self._report_liveness(finding)
 
-            self.bus.tap_stamped(tick)
+            self.bus.tap_stamped(tick, sender=True)
             clock = LaunchClock(epoch_monotonic_s=epoch, scenario=scenario.name,
                                 duration_s=spec.duration_s)
             if not refused:                 # refused: the nodes never get an epoch, never step
