@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 from overdrive.bus.access import owners
-from overdrive.messages import NodeTick, Topic
+from overdrive.messages import NodeTick, Notice, Topic
+from overdrive.run.launch import own_tick
 from tests.bus.fault_launches import Fault, run_fault
 from tests.bus.test_bus_access import USERS, _delivered, _open, speed_node  # noqa: F401
 
@@ -30,6 +31,18 @@ def test_only_the_run_processes_may_publish_liveness_ticks() -> None:
     tick_owners = owners().get(Topic.TICK)
     assert tick_owners is not None
     assert "planner" not in tick_owners and "tool" not in tick_owners
+
+
+@pytest.mark.parametrize(("topic", "msg", "sender", "counted"), [
+    (Topic.TICK, NodeTick(process="move", seq=1), "move", True),
+    (Topic.TICK, NodeTick(process="gate", seq=1), "gate", True),
+    (Topic.TICK, FORGED, "speed", False),          # a run process speaking for another
+    (Topic.TICK, FORGED, "planner", False),
+    (Topic.TICK, FORGED, "", False),               # no sender known
+    (Topic.NOTICE, Notice(kind="info", source="move"), "move", False)])
+def test_the_launcher_counts_a_liveness_tick_only_in_its_senders_own_name(
+        topic: str, msg: object, sender: str, counted: bool) -> None:
+    assert own_tick(topic, msg, sender) is counted
 
 
 @pytest.mark.wallclock

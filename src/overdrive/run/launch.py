@@ -164,6 +164,13 @@ def preset_scenario(cli_name: str, preset: str, start: str = "parked") -> Scenar
                            "duration_s": 1, "events": [event]}, f"<node {cli_name}>")
 
 
+def own_tick(topic: str, msg: Any, sender: str) -> bool:
+    """``msg`` is a liveness tick its sender sent in its own name: a tick in another process's
+    name is ignored (the access rules keep other users off ``process/tick``; this keeps the
+    envelope's sender and the tick's ``process`` the same, so no run process speaks for another)."""
+    return topic == Topic.TICK and isinstance(msg, NodeTick) and msg.process == sender
+
+
 def scenario_node_names(scenario: Scenario) -> list[str]:
     """The CLI names of the server processes ``scenario`` needs, in mesh order."""
     built = {n.name for n in build_nodes(scenario)}
@@ -839,10 +846,8 @@ class Launch:
                 [*(NODE_CLASSES[n] for n in self.names), *([GATE] if self.gate is not None else [])])
 
             def tick(topic: str, msg: Any, sent_s: float, sender: str) -> None:
-                """Liveness ticks, by their send time on the run's axis (``runtime.supervision``);
-                only a process's own: a tick in another's name than its sender's is ignored (the
-                access rules keep others off the key, this keeps the senders honest)."""
-                if topic == Topic.TICK and isinstance(msg, NodeTick) and msg.process == sender:
+                """Liveness ticks, by their send time on the run's axis (``runtime.supervision``)."""
+                if own_tick(topic, msg, sender):
                     for finding in liveness.tick(msg.process, msg.seq, sent_s - epoch,
                                                  self.bus.clock() - epoch):
                         self._report_liveness(finding)
