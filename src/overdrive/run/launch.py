@@ -345,10 +345,13 @@ RESTART_GRACE_S = READY_TIMEOUT_S
 the clock: seconds on a loaded host); it is judged by ``HANG_BOUND_S`` from then on."""
 
 
-def stall_actions(process: str, at_s: float, for_s: float = math.inf) -> list[Action]:
-    """SIGSTOP ``process`` at ``at_s`` and SIGCONT it ``for_s`` later (never: a hang)."""
+def stall_actions(process: str, at_s: float, for_s: float = math.inf,
+                  end_s: float = math.inf) -> list[Action]:
+    """SIGSTOP ``process`` at ``at_s`` and SIGCONT it ``for_s`` later; never (a hang to the
+    end) when ``for_s`` is infinite or ends past ``end_s``, the run's end."""
     stop: list[Action] = [(at_s, "stop", process)]
-    return stop if math.isinf(for_s) else [*stop, (at_s + for_s, "cont", process)]
+    cont_s = at_s + for_s
+    return stop if not cont_s <= end_s else [*stop, (cont_s, "cont", process)]
 
 
 class Launch:
