@@ -117,3 +117,4 @@ def test_a_stall_ending_past_the_run_hangs_to_the_end(text: str, actions: list) 
 
     assert _parse_stall(text, 20.0) == actions
     assert stall_actions("move", 5.0, 100000.0, end_s=20.0) == [(5.0, "stop", "move")]
+    assert stall_actions("move", 5.0) == [(5.0, "stop", "move")]      # no FOR_S, no end given

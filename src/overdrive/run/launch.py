@@ -351,7 +351,8 @@ def stall_actions(process: str, at_s: float, for_s: float = math.inf,
     end) when ``for_s`` is infinite or ends past ``end_s``, the run's end."""
     stop: list[Action] = [(at_s, "stop", process)]
     cont_s = at_s + for_s
-    return stop if not cont_s <= end_s else [*stop, (cont_s, "cont", process)]
+    hang = not (math.isfinite(cont_s) and cont_s <= end_s)
+    return stop if hang else [*stop, (cont_s, "cont", process)]
 
 
 class Launch:
