@@ -96,7 +96,9 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
                 tests/servers/test_direction_hold.py \
                 tests/safety/test_unasked_stops.py::test_the_judge_flags_motion_after_a_watchdog_stop_without_a_new_command \
                 tests/safety/test_unasked_stops.py::test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for \
-                tests/safety/test_unasked_stops.py::test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for
+                tests/safety/test_unasked_stops.py::test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for \
+                tests/safety/test_unasked_stops.py::test_the_judge_counts_a_speed_server_restart_or_a_rise_of_its_unasked_stops \
+                tests/safety/test_unasked_stops.py::test_a_notice_with_a_hostile_code_never_crashes_the_judge_nor_stops_it
 
 # Wall-clock and OpenJAUS interop tests (real processes, sockets, fixed ports) run serially
 # after the parallel suite; the interop ones build OpenJAUS once into ~/.cache/overdrive

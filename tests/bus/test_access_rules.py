@@ -46,7 +46,8 @@ def test_each_user_may_put_exactly_the_topics_it_owns(user: str) -> None:
 
 def test_the_gate_and_tools_may_write_no_command_topic() -> None:
     denied = _denied(acl([*NODES, LAUNCHER_USER, GATE_USER]), GATE_USER)
-    assert {f"overdrive/*/{t}" for t in PUBLISHERS} <= denied
+    assert {t for t, who in PUBLISHERS.items() if GATE_USER in who} == {Topic.TICK}  # its liveness
+    assert {f"overdrive/*/{t}" for t in PUBLISHERS if t != Topic.TICK} <= denied
     assert {Topic.NOTICE} == TOOL_TOPICS and Topic.NOTICE not in PUBLISHERS
 
 
@@ -99,3 +100,21 @@ def test_refused_links_are_counted_from_zenoh_logs_with_or_without_colour() -> N
            "DEBUG accept: New transport link accepted from a to b\n")
     assert count_refused_links(log) == 2
     assert count_refused_links("") == 0
+
+
+LOCKED_DOWN = Path(__file__).resolve().parents[2] / "config" / "zenoh-locked-down.json5"
+EXAMPLE_USERS = Path(__file__).resolve().parents[2] / "config" / "zenoh-users.example.txt"
+
+
+@pytest.mark.parametrize("user", [line.split(":")[0] for line in
+                                  EXAMPLE_USERS.read_text(encoding="utf-8").split()])
+def test_the_shipped_locked_down_config_denies_each_user_exactly_what_it_does_not_own(
+        user: str) -> None:
+    """config/zenoh-locked-down.json5 is written from ``PUBLISHERS`` (``owners``): every owned
+    topic a user does not own (liveness ticks and clock reports included) is denied to it, and
+    nothing it owns."""
+    import zenoh
+
+    rules = json.loads(zenoh.Config.from_file(str(LOCKED_DOWN)).get_json("access_control"))
+    expected = {f"overdrive/*/{topic}" for topic, who in owners().items() if user not in who}
+    assert _denied(rules, user) == expected

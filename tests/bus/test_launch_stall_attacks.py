@@ -16,15 +16,14 @@ from pathlib import Path
 import pytest
 
 from overdrive.bus.access import owners
-from overdrive.messages import NodeTick, Topic
+from overdrive.messages import NodeTick, Notice, Topic
+from overdrive.run.launch import own_tick
 from tests.bus.fault_launches import Fault, run_fault
 from tests.bus.test_bus_access import USERS, _delivered, _open, speed_node  # noqa: F401
 
 FORGED = NodeTick(process="move", seq=1)
 
 
-@pytest.mark.xfail(strict=True, reason="process/tick is owned by nobody: every mesh user may "
-                   "put a tick in any process's name")
 def test_only_the_run_processes_may_publish_liveness_ticks() -> None:
     """The generated access rules deny every topic a user does not own; ``process/tick`` must
     be one of them, owned by the processes of a launch (nodes and gate), not the planner's or a
@@ -34,9 +33,19 @@ def test_only_the_run_processes_may_publish_liveness_ticks() -> None:
     assert "planner" not in tick_owners and "tool" not in tick_owners
 
 
+@pytest.mark.parametrize(("topic", "msg", "sender", "counted"), [
+    (Topic.TICK, NodeTick(process="move", seq=1), "move", True),
+    (Topic.TICK, NodeTick(process="gate", seq=1), "gate", True),
+    (Topic.TICK, FORGED, "speed", False),          # a run process speaking for another
+    (Topic.TICK, FORGED, "planner", False),
+    (Topic.TICK, FORGED, "", False),               # no sender known
+    (Topic.NOTICE, Notice(kind="info", source="move"), "move", False)])
+def test_the_launcher_counts_a_liveness_tick_only_in_its_senders_own_name(
+        topic: str, msg: object, sender: str, counted: bool) -> None:
+    assert own_tick(topic, msg, sender) is counted
+
+
 @pytest.mark.wallclock
-@pytest.mark.xfail(strict=True, reason="config/zenoh-locked-down.json5 has no rule for "
-                   "process/tick (default allow): a planner may forge a node's liveness tick")
 @pytest.mark.parametrize("user", ["planner", "observer"])
 def test_a_planner_or_observer_cannot_forge_a_liveness_tick_in_the_locked_down_config(
         speed_node, user: str) -> None:  # noqa: F811

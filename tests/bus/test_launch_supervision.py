@@ -94,10 +94,27 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     ("--stall=move@1:nan", "FOR_S must be a positive number"),
     ("--restart-node=move@-1", "expected NODE@AT_S"),
     ("--kill=planner@3", "'planner' is not a process of this run"),
-    ("--stall=move@9999:1", "not a time in the run"),
+    ("--stall=move@9999:1", "--stall 'move@9999': AT_S 9999 s is not a time in the run"),
+    ("--kill=move@9999", "--kill 'move@9999': AT_S 9999 s is not a time in the run"),
 ])
 def test_fault_injection_flags_are_checked_before_anything_starts(tmp_path: Path, flag: str,
                                                                  message: str) -> None:
     done = _cli(flag, "--out", str(tmp_path / "run"))
     assert done.returncode == 2, done.stderr
     assert message in done.stderr
+
+
+@pytest.mark.parametrize(("text", "actions"), [
+    ("move@5", [(5.0, "stop", "move")]),                          # hung to the end
+    ("move@5:100000", [(5.0, "stop", "move")]),                   # ends past the run: the same
+    ("move@5:2", [(5.0, "stop", "move"), (7.0, "cont", "move")]),
+    ("move@5:15", [(5.0, "stop", "move"), (20.0, "cont", "move")]),   # at the very end
+])
+def test_a_stall_ending_past_the_run_hangs_to_the_end(text: str, actions: list) -> None:
+    """``--stall NODE@AT_S:FOR_S`` with AT_S + FOR_S past the run's end is a hang to the end, as
+    a stall without FOR_S (docs/multiprocess.md), not an error naming an internal action."""
+    from overdrive.cli.bus import _parse_stall
+
+    assert _parse_stall(text, 20.0) == actions
+    assert stall_actions("move", 5.0, 100000.0, end_s=20.0) == [(5.0, "stop", "move")]
+    assert stall_actions("move", 5.0) == [(5.0, "stop", "move")]      # no FOR_S, no end given

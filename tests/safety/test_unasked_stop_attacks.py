@@ -48,9 +48,6 @@ def test_a_move_server_stall_never_reports_done_short_of_the_distance(
     assert odometer_m >= DISTANCE_M - 0.5 or server.phase != "idle" or reported, odometer_m
 
 
-@pytest.mark.xfail(strict=True, reason="the judge's unintended-motion rule does not watch "
-                   "SpeedState.started_s: a set_speed client's old run driving on after a "
-                   "restarted speed server stopped the vehicle is not flagged")
 @pytest.mark.parametrize("gap_s", [0.0, 0.15])
 def test_the_judge_flags_a_set_speed_run_driving_on_after_a_speed_server_restart(
         gap_s: float) -> None:
@@ -93,8 +90,6 @@ def test_a_stop_issued_while_the_move_server_is_stalled_still_stops_within_its_d
     assert overruns == [], result.summary["violations"]
 
 
-@pytest.mark.xfail(strict=True, reason="the judge does not start its unintended-motion rule on "
-                   "an engine stall (1009), though the speed server counts it as an unasked stop")
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_the_judge_flags_a_set_speed_run_driving_on_after_an_engine_stall(preset: str) -> None:
     """A set_speed run (the scenario repeats one ``run``); the engine stalls at 10 s. Found: the

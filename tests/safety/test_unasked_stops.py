@@ -17,6 +17,7 @@ from overdrive.messages import (
     PedalCommand,
     PowertrainCommand,
     SetSpeed,
+    SpeedState,
     Topic,
     Truth,
 )
@@ -373,16 +374,23 @@ def test_after_an_engine_stall_nothing_moves_until_a_new_command(preset: str) ->
     assert not result.summary["violations"], result.summary["violations"]
 
 
-@pytest.mark.parametrize(("source", "code", "flagged"), [
-    ("vehicle", "", True), ("speed", "1001", True), ("speed", "1009", False),
-    ("speed", "40", False)], ids=["vehicle-timeout", "speed-watchdog", "engine-stall-notice",
-                                  "client-fault"])
+@pytest.mark.parametrize(("kind", "source", "code", "flagged"), [
+    ("estop", "vehicle", "", True), ("estop", "speed", "1001", True),
+    ("fault", "speed", "1009", True), ("estop", "vehicle", "command_timeout", True),
+    ("estop", "xgv-client", "command_timeout", True), ("fault", "xgv-client", "xgv_control", True),
+    ("fault", "xgv-client", "xgv_heartbeat", True), ("estop", "speed", "40", False),
+    ("fault", "speed", "1003", False), ("fault", "xgv-client", "xgv_report_age", False),
+    ("info", "speed", "1001", False)],
+    ids=["vehicle-timeout", "speed-watchdog", "engine-stall", "vehicle-command-timeout",
+         "xgv-command-timeout", "xgv-control-lost", "xgv-heartbeat-lost", "client-fault",
+         "fault-no-stop", "xgv-degraded-no-stop", "not-a-stop-notice"])
 def test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for(
-        source: str, code: str, flagged: bool) -> None:
+        kind: str, source: str, code: str, flagged: bool) -> None:
     """An ``estop`` notice from the vehicle, or from the speed server with its own code (above
-    the clients' 1..999), starts the rule: once at rest, motion without a new command is a
-    violation. A client's fault (it asked for the stop) does not, nor a fault notice that is no
-    e-stop."""
+    the clients' 1..999), an engine stall (fault 1009), the vehicle's command timeout and the
+    JAUS client's lost control or heartbeat start the rule: once at rest, motion without a new
+    command is a violation. A client's fault (it asked for the stop) does not, nor a fault
+    notice that stops nothing."""
     monitor = Monitor(PRESETS["escape-hybrid"], 1.0, 0.01)
     monitor.observe(Topic.MOVE_COMMAND, MoveCommand(kind="move", command_id=1, distance_m=100.0,
                                                     maxspeed_mps=5.0))
@@ -394,7 +402,6 @@ def test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for(
         monitor.observe_delivered(Topic.SET_SPEED, SetSpeed(speed_mps=1, accel_mps2=1,
                                                             gear="drive", state="run"))
         if tick == 20:
-            kind = "fault" if code == "1009" else "estop"
             monitor.observe(Topic.NOTICE, Notice(kind=kind, source=source, code=code))
         speed = 0.0 if 0.5 <= now < 2.0 else 1.0
         x += 0.01 * speed
@@ -430,3 +437,58 @@ def test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for(changed
         monitor.tick(now)
     found = {d["rule"] for d in monitor.details()}
     assert ("unintended_motion" in found) == (not changed), monitor.details()
+
+
+def _set_speed_run_after(event: Any) -> Monitor:
+    """A set_speed run repeating one ``run`` request; ``event(monitor, tick)`` is called every
+    tick; the vehicle is at rest from 0.5 s to 2.0 s, then moves on (no new request)."""
+    monitor = Monitor(PRESETS["escape-hybrid"], 1.0, 0.01, spss_is_command=True)
+    run_spss = SetSpeed(speed_mps=1, accel_mps2=1, gear="drive", state="run")
+    x = 0.0
+    for tick in range(1, 300):
+        now = round(tick * 0.01, 6)
+        monitor.now_s = now
+        if tick % 10 == 0:
+            monitor.observe(Topic.SET_SPEED, run_spss)
+            monitor.observe_delivered(Topic.SET_SPEED, run_spss)
+        event(monitor, tick)
+        speed = 0.0 if 0.5 <= now < 2.0 else 1.0
+        x += 0.01 * speed
+        monitor.observe(Topic.TRUTH, _truth(x, speed))
+        monitor.tick(now)
+    return monitor
+
+
+@pytest.mark.parametrize(("started_s", "unasked_stops", "flagged"), [
+    (0.0, 0, False), (0.2, 0, True), (0.0, 1, True)],
+    ids=["same-server", "restarted-server", "unasked-stop-counted"])
+def test_the_judge_counts_a_speed_server_restart_or_a_rise_of_its_unasked_stops(
+        started_s: float, unasked_stops: int, flagged: bool) -> None:
+    """``SpeedState``: a changed ``started_s`` (a restarted server: nothing it latched survived)
+    or a rise of ``unasked_stops`` is a stop the stack did not ask for, with no notice at all."""
+    def event(monitor: Monitor, tick: int) -> None:
+        later = tick >= 20
+        monitor.observe(Topic.SPEED_STATE, SpeedState(
+            speed_mps=0.0, accel_mps2=0.0, gear="drive", state="run",
+            started_s=started_s if later else 0.0, unasked_stops=unasked_stops if later else 0))
+
+    found = {d["rule"] for d in _set_speed_run_after(event).details()}
+    assert ("unintended_motion" in found) == flagged
+
+
+@pytest.mark.parametrize("code", ["\u00b2", "1\u00b2", "\u0661\u0660\u0660\u0661",
+                                  "\uff11\uff10\uff10\uff11", "9" * 5000, "-1001", " 1001",
+                                  "", "\x00", "1001\n"])
+@pytest.mark.parametrize("kind", ["estop", "fault"])
+def test_a_notice_with_a_hostile_code_never_crashes_the_judge_nor_stops_it(
+        kind: str, code: str) -> None:
+    """Notice is the one topic a tool may publish through the tool gate: a code of digits that
+    are not ASCII ("\u00b2" is ``isdigit()`` but no ``int``), Arabic-Indic or full-width digits, a
+    huge number, signs and blanks neither crash the judge nor count as the speed server's own
+    stop (only a few ASCII digits are a fault code)."""
+    def event(monitor: Monitor, tick: int) -> None:
+        if tick == 20:
+            monitor.observe(Topic.NOTICE, Notice(kind=kind, source="speed", code=code))
+
+    found = {d["rule"] for d in _set_speed_run_after(event).details()}
+    assert "unintended_motion" not in found

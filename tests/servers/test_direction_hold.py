@@ -7,6 +7,7 @@ import math
 
 import pytest
 
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
 from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers.direction_hold import (
@@ -45,10 +46,10 @@ class Driver:
 
     def step(self, n: int = 1, *, target: float = 2.0, speed: float = 0.0, stopped: bool = True,
              grade_pct: float = 15.0, throttle: float = 0.0,
-             agreed: list[float] | None = None) -> str:
+             agreed: list[float] | None = None, dt_s: float = DT_S) -> str:
         for _ in range(n):
             self.last = cmd = self.hold.step(
-                DT_S, target_mps=target, speed_mps=speed, stopped=stopped,
+                dt_s, target_mps=target, speed_mps=speed, stopped=stopped,
                 sin_pitch=sin_of(grade_pct), throttle_pct=throttle, gear=self.gear,
                 source_speeds_mps=agreed)
             if cmd.fault is not None:
@@ -368,3 +369,60 @@ def test_a_timeout_says_why_the_hold_was_never_released() -> None:
     d.step(round(CFG.hold_timeout_s / DT_S) + 1, target=2.0, throttle=100.0)
     assert d.faults == [DirectionFault.ROLLBACK_AT_FULL_DRIVE, DirectionFault.CANNOT_HOLD_GRADE]
     assert d.messages[1].endswith("it already failed on this grade in this gear; held, brakes on")
+
+
+# --------------------------------------------------------------------------- gaps (a stall)
+
+GAP_S = 0.5   # a stalled speed server: one step after half a second
+
+
+def test_after_a_gap_one_standing_sample_does_not_end_the_settle() -> None:
+    """Caught, then the server stalls 0.5 s: the step after the gap is one observed standing
+    sample, not settle_s of standing; the retry comes only after settle_s of observed periods."""
+    d = Driver()
+    released(d)
+    d.step(CFG.rollback_periods, target=2.0, speed=-0.2, stopped=True, throttle=60.0)
+    assert d.hold.state == "caught"
+    d.step(target=2.0, dt_s=GAP_S)
+    assert d.hold.state == "caught"
+    assert d.hold.standing_s == pytest.approx(MAX_CONTROL_STEP_S)
+    d.step(round((CFG.settle_s - MAX_CONTROL_STEP_S) / DT_S) - 2, target=2.0)
+    assert d.hold.state == "caught"
+    d.step(3, target=2.0)
+    assert d.hold.state == "holding"
+
+
+@pytest.mark.parametrize("gaps", [5, 20])
+def test_gaps_do_not_add_towards_the_hold_timeout_or_the_stall(gaps: int) -> None:
+    """Holding (a throttle short of the release) or standing uphill at full throttle across
+    stalls of 0.5 s: each gap adds one bounded step to the 3 s timers, not 0.5 s (20 gaps
+    would be 10 s: both faults, unobserved)."""
+    held = Driver()
+    held.step(target=0.0)
+    held.step(target=2.0)
+    short = held.release_throttle_pct(15.0) - 0.5
+    held.step(gaps, target=2.0, throttle=short, dt_s=GAP_S)
+    assert held.hold.state == "holding" and held.faults == []
+    assert held.hold.time_in_state_s == pytest.approx(gaps * MAX_CONTROL_STEP_S)
+    stalled = Driver()
+    released(stalled)
+    stalled.step(gaps, target=2.0, throttle=100.0, dt_s=GAP_S)
+    assert stalled.faults == [] and stalled.hold.stalled_s <= gaps * MAX_CONTROL_STEP_S + 1e-9
+
+
+def test_a_rollback_during_a_gap_is_measured_in_full() -> None:
+    """The distance integral takes the real elapsed time: 0.05 m/s back for 0.8 s (a stall) is
+    0.04 m, beyond rollback_m (0.03), slower than rollback_mps: caught by the distance rule."""
+    d = Driver()
+    released(d)
+    d.step(target=2.0, speed=-0.05, stopped=False, throttle=60.0, dt_s=0.8)
+    assert d.hold.back_m == pytest.approx(0.04)
+    assert d.hold.state == "caught" and d.caught
+
+
+def test_a_negative_elapsed_time_counts_nothing() -> None:
+    d = Driver()
+    released(d)
+    before = d.hold.time_in_state_s
+    d.step(target=2.0, throttle=100.0, dt_s=-1.0)
+    assert d.hold.time_in_state_s == before and d.hold.stalled_s == 0.0

@@ -89,6 +89,7 @@ CONNECT_RETRY = {"period_init_ms": 50, "period_max_ms": 500, "period_increase_fa
 
 SIM = frozenset({"scenario"})             # the scenario player stands in for planner and world
 VEHICLE_SIDE = frozenset({"vehicle", "xgv"})
+RUN_PROCESSES = VEHICLE_SIDE | {"speed", "driving", "move"}   # run.launch.NODE_CLASSES' senders
 PUBLISHERS: dict[str, frozenset[str]] = {
     Topic.MOVE_COMMAND: SIM | {"planner"},
     Topic.MOVE_REPLY: frozenset({"move"}),
@@ -113,8 +114,15 @@ PUBLISHERS: dict[str, frozenset[str]] = {
     Topic.TRUTH: VEHICLE_SIDE,
     "sim/world": SIM,
     "sim/faults": SIM,
+    Topic.TICK: RUN_PROCESSES | {"gate"},
+    CLOCK_REPORT_TOPIC: RUN_PROCESSES | SIM,
 }
-"""Who may publish on each topic; topics not listed (``events``, extra topics) are open."""
+"""Who may publish on each topic; topics not listed (``events``, extra topics) are open.
+Liveness ticks (``NodeTick``): each run process in its own name (``runtime.supervision.TickNode``,
+sender = node name) and the tool gate (``bus.access.GATE_USER``, not imported: access imports
+this module); the launcher also requires ``NodeTick.process`` to equal the sender. Clock
+reports: the run processes and the launcher (``bus.access.LAUNCHER_USER`` = ``scenario``),
+whose ``ClockReport.source`` must equal the sender (``_admit``)."""
 
 INBOX_CAPACITY = 1024
 """Envelopes a node's inbox holds: ~1 s of everything the busiest node (the recorder) receives
@@ -314,7 +322,7 @@ class ZenohBus:
         self._notices: deque[Notice] = deque()
         self._rejected_once: set[str] = set()
         self._overflow_once: set[str] = set()
-        self._stamped_taps: list[Callable[[str, Any, float], None]] = []
+        self._stamped_taps: list[tuple[Callable[..., None], bool]] = []   # (observer, with sender)
         self._tokens: list[Any] = []
         self._pulled: Any = None            # pull mode: the FIFO-channel subscriber on **
         self.clocks = PeerClocks(sender)
@@ -488,17 +496,22 @@ class ZenohBus:
                 if estimate is not None and estimate.uncertainty_s <= MAX_CLOCK_UNCERTAINTY_S:
                     self._tap_offsets[sender] = estimate.offset_s
                 sent_s += self._tap_offsets.get(sender, 0.0)
-                for stamped in self._stamped_taps:
-                    stamped(topic, msg, sent_s)
+                for stamped, with_sender in self._stamped_taps:
+                    if with_sender:
+                        stamped(topic, msg, sent_s, sender)
+                    else:
+                        stamped(topic, msg, sent_s)
         return len(items)
 
-    def tap_stamped(self, observer: Callable[[str, Any, float], None]) -> None:
+    def tap_stamped(self, observer: Callable[..., None], *, sender: bool = False) -> None:
         """Like ``tap``, with the frame's send time as a third argument: on this process's clock
         (``clock``), converted from the sender's with the midpoint of its offset bounds when
-        they are known (as they are when the launcher judges: it engages only then)."""
+        they are known (as they are when the launcher judges: it engages only then). With
+        ``sender``, the envelope's sender (admitted by ``publishers``) as a fourth: what a
+        message claims about who wrote it is checked against it (liveness ticks)."""
         if self._tap_queue is None:
             self.tap(lambda _topic, _msg: None)
-        self._stamped_taps.append(observer)
+        self._stamped_taps.append((observer, sender))
 
     # ------------------------------------------------------------------ clocks
 

@@ -134,23 +134,30 @@ def _parse_clock(text: str) -> tuple[float, float]:
     return parsed
 
 
-def _parse_action(text: str, what: str) -> tuple[float, str, str]:
-    """``NODE@AT_S`` -> ``(at_s, what, node)``."""
+def _parse_action(text: str, what: str, flag: str, end_s: float) -> tuple[float, str, str]:
+    """``NODE@AT_S`` (of option ``flag``) -> ``(at_s, what, node)``; AT_S within the run
+    (0 to ``end_s``)."""
     name, sep, at = text.partition("@")
     try:
         at_s = float(at)
     except ValueError:
         at_s = math.nan
     if not sep or not name or not math.isfinite(at_s) or at_s < 0.0:
-        raise click.BadParameter(f"{text!r}: expected NODE@AT_S with AT_S a time in seconds "
-                                 f">= 0, e.g. move@12")
+        raise click.BadParameter(f"{flag} {text!r}: expected NODE@AT_S with AT_S a time in "
+                                 f"seconds >= 0, e.g. move@12")
+    if at_s > end_s:
+        raise click.BadParameter(f"{flag} {text!r}: AT_S {at_s:g} s is not a time in the run "
+                                 f"(0 to {end_s:g} s)")
     return at_s, what, name
 
 
-def _parse_stall(text: str) -> list[tuple[float, str, str]]:
-    """``NODE@AT_S[:FOR_S]`` -> a SIGSTOP and, after FOR_S, a SIGCONT (none: hung to the end)."""
+def _parse_stall(text: str, end_s: float) -> list[tuple[float, str, str]]:
+    """``NODE@AT_S[:FOR_S]`` -> ``launch.stall_actions``: a SIGSTOP and, after FOR_S, a SIGCONT
+    (none: hung to the end, as is a FOR_S that ends past the run's ``end_s``)."""
+    from overdrive.run.launch import stall_actions
+
     head, _, for_text = text.partition(":")
-    at_s, _, name = _parse_action(head, "stop")
+    at_s, _, name = _parse_action(head, "stop", "--stall", end_s)
     for_s = math.inf
     if for_text:
         try:
@@ -158,10 +165,9 @@ def _parse_stall(text: str) -> list[tuple[float, str, str]]:
         except ValueError:
             for_s = math.nan
         if not (math.isfinite(for_s) and for_s > 0.0):
-            raise click.BadParameter(f"{text!r}: FOR_S must be a positive number of seconds, "
-                                     f"e.g. move@12:0.5")
-    stops: list[tuple[float, str, str]] = [(at_s, "stop", name)]
-    return stops if math.isinf(for_s) else [*stops, (at_s + for_s, "cont", name)]
+            raise click.BadParameter(f"--stall {text!r}: FOR_S must be a positive number of "
+                                     f"seconds, e.g. move@12:0.5")
+    return stall_actions(name, at_s, for_s, end_s=end_s)
 
 
 @click.command()
@@ -177,7 +183,8 @@ def _parse_stall(text: str) -> list[tuple[float, str, str]]:
                    "(repeat).")
 @click.option("--stall", "stalls", multiple=True, metavar="NODE@AT_S[:FOR_S]",
               help="Fault injection: SIGSTOP a process at AT_S, SIGCONT it FOR_S later (without "
-                   "FOR_S it stays hung to the end of the run) (repeat).")
+                   "FOR_S, or with one ending past the run, it stays hung to the end of the run) "
+                   "(repeat).")
 @click.option("--restart-node", "restart_nodes", multiple=True, metavar="NODE@AT_S",
               help="Fault injection: restart a process at AT_S (SIGTERM, then start it again) "
                    "(repeat).")
@@ -207,9 +214,10 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
 
     del user  # each process uses its node name
     loaded = _load(scenario)
-    actions = [*(_parse_action(k, "kill") for k in kills),
-               *(a for text in stalls for a in _parse_stall(text)),
-               *(_parse_action(r, "restart") for r in restart_nodes)]
+    end_s = loaded.spec.duration_s
+    actions = [*(_parse_action(k, "kill", "--kill", end_s) for k in kills),
+               *(a for text in stalls for a in _parse_stall(text, end_s)),
+               *(_parse_action(r, "restart", "--restart-node", end_s) for r in restart_nodes)]
     offsets: dict[str, tuple[float, float]] = {}
     for text in clock_offsets:
         name, sep, value = text.partition("=")

@@ -81,6 +81,12 @@ LIMIT_RAMP_DECEL_MPS2 = 1.0   # a lowered limit must be met at least this fast: 
 MAX_SPEED_TTL_S = 0.5         # docs/driving-module.md: a limit not refreshed for 0.5 s lapses
 MOTION_TOLERANCE_M = 0.10     # unintended motion: same as the direction tolerance
 CLIENT_FAULT_MAX = 999        # seed 001: a client's fault codes; the speed server's own start at 1001
+FAULT_CODE_DIGITS_MAX = 9     # fault codes are 1..999 (clients') and 1001+ (the speed server's)
+ENGINE_STALLED = 1009         # servers.speed_table.FaultCode.ENGINE_STALLED: a stop, though no e-stop
+UNASKED_CODES = frozenset({"command_timeout", "xgv_control", "xgv_heartbeat"})
+"""Notice codes of stops the stack did not ask for, from any source: the vehicle's own command
+timeout (the simulated vehicle's and the XGV client's e-stop), the JAUS client's lost control
+and lost heartbeat (the XGV then pauses on its own)."""
 ELLIPSE_TOLERANCE = 0.15      # plant tolerance: actuator lags and tyre-model transients
 ESTOP_DISABLE_BRAKE_S = 0.5   # brake actuator reaches full effort within ~5 time constants
 MIN_DECEL_MPS2 = 0.1          # floor of the physical decel: on a slope steeper than the tyres
@@ -115,6 +121,30 @@ the speed server received, and when a STOP reached the move server."""
 
 TRUTH_FIELDS = ("x_m", "y_m", "heading_rad", "speed_mps", "accel_mps2", "lat_accel_mps2",
                 "curvature_1pm", "pitch_rad", "roll_rad", "odometer_m")
+
+
+def _ascii_int(text: str) -> int | None:
+    """``text`` as a non-negative integer if it is ASCII digits only (``str.isdigit`` also
+    accepts "²", which ``int`` refuses) and at most ``FAULT_CODE_DIGITS_MAX`` of them (a longer
+    one is no fault code, and ``int`` refuses over 4300 digits), else None."""
+    if len(text) > FAULT_CODE_DIGITS_MAX or not (text.isascii() and text.isdigit()):
+        return None
+    return int(text)
+
+
+def _unasked_notice(msg: Any) -> bool:
+    """A Notice (e-stop or fault) of a stop the stack did not ask for: any e-stop of the
+    vehicle's, the speed server's own e-stops (codes above a client's) and engine stall, the
+    vehicle's command timeout and the JAUS client's lost control or heartbeat."""
+    code = msg.code if isinstance(msg.code, str) else ""
+    if code in UNASKED_CODES:
+        return True
+    if msg.kind == "estop" and msg.source == "vehicle":
+        return True
+    number = _ascii_int(code)
+    if msg.source != "speed" or number is None:
+        return False
+    return number > CLIENT_FAULT_MAX if msg.kind == "estop" else number == ENGINE_STALLED
 
 
 def _key(msg: Any) -> tuple[int, int]:
@@ -238,6 +268,7 @@ class Monitor:
         self._interrupt_since_s = 0.0
         self.after_interrupt: tuple[float, float, float] | None = None  # (anchor, allowed, ended at)
         self.unasked_stop: tuple[str, float] | None = None   # (cause, since): not at rest yet
+        self._speed_seen: tuple[float, int] | None = None    # SpeedState (started_s, unasked_stops)
         self.after_stop: tuple[float, float, str] | None = None  # (anchor, at rest since, cause)
         # watchdog (delivered SPSS)
         self.last_spss_s: float | None = None
@@ -255,6 +286,7 @@ class Monitor:
                           Topic.PEDALS: self._pedals, Topic.STEER: self._steer,
                           Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._issued_spss,
                           Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._vehicle_status,
+                          Topic.SPEED_STATE: self._speed_state,
                           Topic.SAFETY: self._safety, SIM_WORLD_TOPIC: self._world}
 
     # ------------------------------------------------------------------ bookkeeping
@@ -466,9 +498,21 @@ class Monitor:
     def _notice(self, msg: Any) -> None:
         if msg.kind == "rejected" and msg.code == "no_control":
             self.rejected_seen += 1
-        elif msg.kind == "estop" and (msg.source == "vehicle" or (
-                msg.source == "speed" and msg.code.isdigit() and int(msg.code) > CLIENT_FAULT_MAX)):
+        elif msg.kind in ("estop", "fault") and _unasked_notice(msg):
             self._unasked_stop(msg.code or msg.source)
+
+    def _speed_state(self, msg: Any) -> None:
+        """A restarted speed server (``started_s`` changed: nothing it latched survived) or a
+        rise of ``unasked_stops`` (an e-stop of its own, an engine stall) is a stop the stack
+        did not ask for, as the move server counts it (docs/speed-server.md)."""
+        seen = self._speed_seen
+        self._speed_seen = (msg.started_s, msg.unasked_stops)
+        if seen is None:
+            return
+        if msg.started_s != seen[0]:
+            self._unasked_stop("speed server restart")
+        elif msg.unasked_stops > seen[1]:
+            self._unasked_stop(f"speed server unasked stop #{msg.unasked_stops}")
 
     def _unasked_stop(self, cause: str) -> None:
         """A stop the stack did not ask for began: once at rest, the vehicle stays there."""

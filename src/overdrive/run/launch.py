@@ -164,6 +164,13 @@ def preset_scenario(cli_name: str, preset: str, start: str = "parked") -> Scenar
                            "duration_s": 1, "events": [event]}, f"<node {cli_name}>")
 
 
+def own_tick(topic: str, msg: Any, sender: str) -> bool:
+    """``msg`` is a liveness tick its sender sent in its own name: a tick in another process's
+    name is ignored (the access rules keep other users off ``process/tick``; this keeps the
+    envelope's sender and the tick's ``process`` the same, so no run process speaks for another)."""
+    return topic == Topic.TICK and isinstance(msg, NodeTick) and msg.process == sender
+
+
 def scenario_node_names(scenario: Scenario) -> list[str]:
     """The CLI names of the server processes ``scenario`` needs, in mesh order."""
     built = {n.name for n in build_nodes(scenario)}
@@ -338,10 +345,14 @@ RESTART_GRACE_S = READY_TIMEOUT_S
 the clock: seconds on a loaded host); it is judged by ``HANG_BOUND_S`` from then on."""
 
 
-def stall_actions(process: str, at_s: float, for_s: float = math.inf) -> list[Action]:
-    """SIGSTOP ``process`` at ``at_s`` and SIGCONT it ``for_s`` later (never: a hang)."""
+def stall_actions(process: str, at_s: float, for_s: float = math.inf,
+                  end_s: float = math.inf) -> list[Action]:
+    """SIGSTOP ``process`` at ``at_s`` and SIGCONT it ``for_s`` later; never (a hang to the
+    end) when ``for_s`` is infinite or ends past ``end_s``, the run's end."""
     stop: list[Action] = [(at_s, "stop", process)]
-    return stop if math.isinf(for_s) else [*stop, (at_s + for_s, "cont", process)]
+    cont_s = at_s + for_s
+    hang = not (math.isfinite(cont_s) and cont_s <= end_s)
+    return stop if hang else [*stop, (cont_s, "cont", process)]
 
 
 class Launch:
@@ -838,14 +849,14 @@ class Launch:
             liveness = self.liveness = Liveness(
                 [*(NODE_CLASSES[n] for n in self.names), *([GATE] if self.gate is not None else [])])
 
-            def tick(topic: str, msg: Any, sent_s: float) -> None:
+            def tick(topic: str, msg: Any, sent_s: float, sender: str) -> None:
                 """Liveness ticks, by their send time on the run's axis (``runtime.supervision``)."""
-                if topic == Topic.TICK and isinstance(msg, NodeTick):
+                if own_tick(topic, msg, sender):
                     for finding in liveness.tick(msg.process, msg.seq, sent_s - epoch,
                                                  self.bus.clock() - epoch):
                         self._report_liveness(finding)
 
-            self.bus.tap_stamped(tick)
+            self.bus.tap_stamped(tick, sender=True)
             clock = LaunchClock(epoch_monotonic_s=epoch, scenario=scenario.name,
                                 duration_s=spec.duration_s)
             if not refused:                 # refused: the nodes never get an epoch, never step

@@ -36,7 +36,13 @@ throttle, for metres. Three rules, each a transition of ``TRANSITIONS``:
   of rolling back again, so repeated commands never add up to a rollback.
 
 The hold works in the gear's frame (speeds positive in the gear's direction: reversing up a
-hill is the same as driving forward up one) and never reads a clock: ``step`` gets ``dt_s``.
+hill is the same as driving forward up one) and never reads a clock: ``step`` gets ``dt_s``,
+the real time since the last step. Only the distance integral (``travel_m``, the rollback rule)
+and the creep filter take it whole: a rollback during a stall of the server is measured in
+full (and a sample after a gap counts fully towards a creep catch, the braking side). The
+timers (``settle_s``, ``hold_timeout_s``, ``stall_s``) count observed time: each step adds at
+most ``MAX_CONTROL_STEP_S``, so a stall neither skips the standing a retry must have seen nor
+adds towards a fault it did not observe.
 """
 
 from __future__ import annotations
@@ -47,7 +53,7 @@ from typing import Final, Literal
 
 import msgspec
 
-from overdrive.dynamics.control import first_order_lag
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S, first_order_lag
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
 from overdrive.dynamics.vehicle_params import G_MPS2, Gear, VehicleParams
 
@@ -247,7 +253,8 @@ class DirectionHold:
         ``stopped``: the server's filtered standstill; ``sin_pitch``: positive when the gear
         points uphill; ``throttle_pct``: the throttle actuator's reported position."""
         cfg = self.config
-        self.dt_s = dt_s
+        observed_s = min(max(dt_s, 0.0), MAX_CONTROL_STEP_S)   # timers: what was seen, not a gap
+        self.dt_s = observed_s
         sources = list(source_speeds_mps) if source_speeds_mps else [speed_mps]
         agreed = agreed_speed_mps(sources)
         self.forward_filt_mps = first_order_lag(max(sources), self.forward_filt_mps,
@@ -258,8 +265,8 @@ class DirectionHold:
             self.peak_m = self.travel_m   # not under a command: nothing to measure a rollback from
         self.back_fast_n = self.back_fast_n + 1 if speed_mps < -cfg.rollback_mps else 0
         standing = stopped and abs(speed_mps) < cfg.rollback_mps   # filtered and raw: at rest
-        self.standing_s = self.standing_s + dt_s if standing else 0.0
-        self.time_in_state_s += dt_s
+        self.standing_s = self.standing_s + observed_s if standing else 0.0
+        self.time_in_state_s += observed_s
 
         full_drive = drive_authority_mps2(self.params, gear, 0.0)
         pull = resistance_mps2(self.params, 0.0, sin_pitch)
