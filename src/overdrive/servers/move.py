@@ -926,7 +926,9 @@ class MoveServer:
             else:
                 code = "command_silence"
                 what_stop = ("the driving module stopped the vehicle for loss of command "
-                             "traffic (this server's authorization stream went quiet)")
+                             "traffic (this server's authorization stream went quiet"
+                             + (f": it did not run for {gap_s:.2f} s" if gap_s > 0.0 else "")
+                             + ")")
             out.append((Topic.NOTICE, Notice(
                 kind="interrupted", source=SOURCE, code=code,
                 reason=f"{what_stop}: {what}; nothing moves until a new command")))
