@@ -6,8 +6,10 @@ speed, ``safety.plausibility``), computes the goal speed (the highest speed that
 still stop within the most restrictive authorization, under the acceleration ellipse, with a
 reaction allowance for the speed server's latency, capped by the lowest live speed limit, the
 gear and the lateral limit of the curve), rate-limits the curvature inside the ellipse, and
-sequences the speed server (seed 001) as its only client. Design and formulas:
-docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
+sequences the speed server (seed 001) as its only client. A streaming source (the move server)
+silent beyond ``command_silence_s`` is loss of command traffic: the vehicle stops as for a
+STOP, the stop is counted (``DrivingStatus.unasked_stops``) and the source held at 0 until it
+sends 0. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
 
 Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
 ``Notice(kind="rejected")`` for every rejected input.
