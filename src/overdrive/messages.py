@@ -197,6 +197,12 @@ class DrivingStatus(Message, frozen=True):
     accel_limit_mps2: float        # longitudinal acceleration still available in the ellipse
     decel_limit_mps2: float
     rejected: str = ""             # reason of the last rejected input, "" if none
+    unasked_stops: int = 0         # stops the module made on its own since it started (loss of
+                                   # command traffic: a streaming source silent beyond its
+                                   # bound); never reset: the move server latches on any
+                                   # increase, so a lost DrivingStatus cannot hide one
+    started_s: float = 0.0         # this module's first step: a change is a restart (its count
+                                   # starts again from 0)
 
 
 # --------------------------------------------------------------------------- speed server (seed 001)

@@ -58,8 +58,6 @@ def test_a_planner_or_observer_cannot_forge_a_liveness_tick_in_the_locked_down_c
 
 
 @pytest.mark.wallclock
-@pytest.mark.xfail(strict=True, reason="a resumed move server drives the old MOVE on after the "
-                   "driving module stopped the vehicle at the end of its authorization")
 def test_a_move_server_stalled_until_the_vehicle_stands_never_drives_the_old_move_on(
         run_dir: Path) -> None:
     """Real processes: a 60 m MOVE at 4 m/s, the move server SIGSTOPped 5 s at 8 s (the sweep

@@ -229,7 +229,7 @@ def test_a_restarted_driving_module_never_drives_on_by_itself(preset: str, gap_s
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("speed_mps", [4.0, 8.0])
 @pytest.mark.parametrize("for_s", [0.1, 0.25, 0.5, 1.0, 2.0])
-@pytest.mark.parametrize("node", ["speed", "driving"])
+@pytest.mark.parametrize("node", ["speed", "driving", "move"])
 @pytest.mark.parametrize("at_s", [4.0, 7.5])
 def test_a_stalled_node_never_overruns_speeds_or_drives_on_by_itself(
         preset: str, speed_mps: float, for_s: float, node: str, at_s: float) -> None:

@@ -6,8 +6,10 @@ speed, ``safety.plausibility``), computes the goal speed (the highest speed that
 still stop within the most restrictive authorization, under the acceleration ellipse, with a
 reaction allowance for the speed server's latency, capped by the lowest live speed limit, the
 gear and the lateral limit of the curve), rate-limits the curvature inside the ellipse, and
-sequences the speed server (seed 001) as its only client. Design and formulas:
-docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
+sequences the speed server (seed 001) as its only client. A streaming source (the move server)
+silent beyond ``command_silence_s`` is loss of command traffic: the vehicle stops as for a
+STOP, the stop is counted (``DrivingStatus.unasked_stops``) and the source held at 0 until it
+sends 0. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
 
 Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
 ``Notice(kind="rejected")`` for every rejected input.
@@ -58,9 +60,14 @@ from overdrive.safety.actuators import SteeringMonitor
 from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.gear_hints import GearHints
+from overdrive.servers.move_arrivals import sample_times
 
 SOURCE = "driving"
 TIME_EPS_S = 1e-9   # slack when comparing simulated times built from integer ticks
+
+SENSOR_TOPICS = frozenset({Topic.GPS_INS, Topic.IMU, Topic.WHEEL_SPEED})
+"""Periodic sensors whose samples queued during a stall are dated at their own time
+(``move_arrivals``): the wheel odometer and the IMU integral never credit a stall to one."""
 
 SPEED_STATES = ("parked", "reset", "starting", "startwait", "paused", "runwait", "idle",
                 "shifting", "run")
@@ -113,6 +120,14 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     normal_stop_reaction_s: float = 0.3  # a stop on the normal path loses this much at speed: up to
                                          # one SPSS period, the reference ease-in, brake build-up
                                          # (issue 17: below it the end is met by hard braking)
+    streaming_sources: tuple[str, ...] = ("move",)   # sources that send their authorization and
+                                       # limit every period (the move server: every 10 ms); their
+                                       # silence is loss of command traffic. Others (a lidar
+                                       # authorizing once) keep their last word (docs)
+    command_silence_s: float = 0.2     # silent this long (this module's own running time): lost.
+                                       # Seed 001's 200 ms SPSS budget, 20 of the move server's
+                                       # 10 ms periods; the speed server's watchdog, the sensor
+                                       # and radar timeouts use the same figure
 
 
 # --------------------------------------------------------------------------- validation
@@ -435,6 +450,11 @@ class DrivingModule:
             raise ValueError(f"friction: must be a positive finite number, got {friction}")
         self.params = params
         self.config = cfg = config or DrivingConfig()
+        if not (math.isfinite(cfg.command_silence_s) and cfg.command_silence_s > 0.0):
+            raise ValueError("command_silence_s: must be a positive finite number, got "
+                             f"{cfg.command_silence_s}")
+        if not all(_valid_source(s) for s in cfg.streaming_sources):
+            raise ValueError(f"streaming_sources: non-empty names, got {cfg.streaming_sources!r}")
         self.friction = friction    # assumed: the module has no friction sensor (see docs)
         self.traction = TractionMonitor(cfg.envelope)
         self.limits = SpeedLimits(cfg.max_speed_ttl_s)
@@ -495,6 +515,12 @@ class DrivingModule:
         self.steering_stuck = False     # latched: the vehicle stops and stays stopped
         self.monitor_actuators = cfg.monitor_actuators
         self._inputs[Topic.IMU] = self._imu
+        # loss of command traffic (issue 38): a streaming source silent beyond command_silence_s
+        self.running_s = 0.0    # this module's running time: steps of at most MAX_CONTROL_STEP_S
+                                # (its own stall is the speed server's watchdog's, not silence)
+        self.heard_s: dict[str, float] = {}       # streaming source -> running_s last heard
+        self.traffic_lost: dict[str, str] = {}    # streaming source -> why it is held at 0
+        self.unasked_stops = 0  # stops made on its own since the start (DrivingStatus)
 
     # ------------------------------------------------------------------ inputs
 
@@ -537,6 +563,7 @@ class DrivingModule:
                 return
             self._taken(("max_speed", msg.source), msg.issued_s)
             self.limits.update(msg.source, float(msg.speed_mps), now_s)
+            self._heard(msg.source)
 
     def _advance(self, now_s: float, msg: Any, out: list) -> None:
         reason = validate_advance(msg)
@@ -596,8 +623,59 @@ class DrivingModule:
                     continue
                 odometer0 = anchored
             self._taken(key, msg.issued_s)
-            self.authorizations.update(msg.source, msg.reverse, float(msg.distance_m), odometer0)
+            self._heard(msg.source)
+            distance_m = float(msg.distance_m)
+            if msg.source in self.traffic_lost:
+                if distance_m > 0.0:
+                    distance_m = 0.0   # lost once: held until it says it knows (it sends 0)
+                else:
+                    del self.traffic_lost[msg.source]
+            self.authorizations.update(msg.source, msg.reverse, distance_m, odometer0)
         self._arrived.clear()
+
+    def _heard(self, source: str) -> None:
+        """A streaming source's message taken: it is alive (``_watch_command_traffic``)."""
+        if source in self.config.streaming_sources:
+            self.heard_s[source] = self.running_s
+
+    def _watch_command_traffic(self, v: float, out: list) -> None:
+        """Loss of command traffic (issue 38; seed 003: authorizations "come in regularly"): a
+        streaming source (``streaming_sources``: the move server, every 10 ms) silent for more
+        than ``command_silence_s`` of this module's running time while it authorizes motion
+        (more than ``min_move_m`` left) or the vehicle moves is lost: it may have been told to
+        stop (a STOP waits in a stalled move server's inbox). Its authorizations are held at 0
+        (the hard braking of a STOP follows, ``_hard_brake``), the stop is counted in
+        ``DrivingStatus.unasked_stops`` and reported; the source stays held until it sends a
+        zero authorization (it knows it lost the vehicle), so a source that resumes and carries
+        the old command on does not move the vehicle."""
+        cfg = self.config
+        reverse = self.mode.direction == "reverse"
+        for source, heard_s in self.heard_s.items():
+            silent_s = self.running_s - heard_s
+            if source in self.traffic_lost or silent_s <= cfg.command_silence_s + TIME_EPS_S:
+                continue
+            left_m = self._source_remaining_m(source, reverse)
+            if not (left_m > cfg.min_move_m or v >= cfg.hard_brake_min_mps):
+                continue   # nothing at stake: a quiet source that authorizes nothing stops nothing
+            for rev in (False, True):
+                if (source, rev) in self.authorizations.by_source:
+                    self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
+            why = (f"no authorization or limit from {source!r} for {silent_s:.2f} s (beyond "
+                   f"{cfg.command_silence_s:.2f} s) with {left_m:.2f} m authorized at "
+                   f"{v:.2f} m/s: loss of command traffic, stopping; its authorization is held "
+                   f"at 0 until it sends 0")
+            self.traffic_lost[source] = why
+            self.unasked_stops += 1
+            out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
+                                             code="command_silence", reason=why)))
+
+    def _source_remaining_m(self, source: str, reverse: bool) -> float:
+        """What is left of one source's authorization for a direction (0 when it has none)."""
+        entry = self.authorizations.by_source.get((source, reverse))
+        if entry is None:
+            return 0.0
+        distance_m, odometer0_m = entry
+        return max(0.0, distance_m - (self._progress_m(reverse) - odometer0_m))
 
     def _drive_mode(self, now_s: float, msg: Any, out: list) -> None:
         reason = validate_drive_mode(msg)
@@ -652,10 +730,18 @@ class DrivingModule:
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         out: list[tuple[str, Any]] = []
         inputs = self._inputs
-        for topic, msg in inbox:
+        dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
+        self.running_s += min(dt_s, MAX_CONTROL_STEP_S)
+        if self.first_s is None:
+            self.first_s = now_s
+        # a sensor sample counts at its own time, not at its arrival: after a stall the queue is
+        # read at once, and one reading must not be credited for the whole gap (issue 38)
+        times = sample_times(inbox, SENSOR_TOPICS, self.last_now_s, now_s)
+        self.last_now_s = now_s
+        for (topic, msg), at_s in zip(inbox, times, strict=True):
             handler = inputs.get(topic)
             if handler is not None:
-                handler(now_s, msg, out)
+                handler(at_s, msg, out)
         out.extend((Topic.NOTICE, n) for n in self.motion.step(
             now_s, -1 if self.mode.direction == "reverse" else 1))
         if self.gps is not None:
@@ -663,8 +749,6 @@ class DrivingModule:
             self.history_reverse.record(now_s, self._progress_m(True))
         if self._arrived:
             self._apply_advances(now_s, out)
-        dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
-        self.last_now_s = now_s
         p, cfg = self.params, self.config
 
         trusted_mps = self.motion.speed_mps   # issue 16: never an untrusted speed
@@ -693,6 +777,8 @@ class DrivingModule:
         tyre = tyre_longitudinal_mps2(lon_axis, lat_axis, demand)
         limits = Longitudinal(accel_mps2=tyre - g_along, decel_mps2=tyre + g_along)
 
+        if self.heard_s:
+            self._watch_command_traffic(v, out)
         source_limit = self.limits.lowest_mps(now_s)
         remaining = self.authorizations.remaining_m(reverse, self._progress_m(reverse))
         self._plan_gear(now_s, v, source_limit, pitch, remaining)
@@ -720,8 +806,6 @@ class DrivingModule:
             goal = 0.0
         self.goal_mps = goal
 
-        if self.first_s is None:
-            self.first_s = now_s
         waiting = server is None and now_s < self.first_s + cfg.spss_period_s - TIME_EPS_S
         if (now_s + TIME_EPS_S >= self.next_spss_s or urgent) and not waiting:
             overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
@@ -763,7 +847,9 @@ class DrivingModule:
         out.append((Topic.DRIVING_STATUS, DrivingStatus(
             goal_speed_mps=goal, authorized_m=remaining, speed_limit_mps=speed_limit,
             curvature_1pm=self.curvature_1pm, accel_limit_mps2=limits.accel_mps2,
-            decel_limit_mps2=limits.decel_mps2, rejected=self.rejected)))
+            decel_limit_mps2=limits.decel_mps2, rejected=self.rejected,
+            unasked_stops=self.unasked_stops,
+            started_s=self.first_s if self.first_s is not None else now_s)))
         return out
 
     # ------------------------------------------------------------------ helpers

@@ -52,6 +52,7 @@ from typing import Any
 
 import msgspec
 
+from overdrive.dynamics.control import MAX_CONTROL_STEP_S
 from overdrive.dynamics.ellipse import (
     DEFAULT_ENVELOPE,
     BrakingCache,
@@ -86,6 +87,7 @@ from overdrive.safety.plausibility import MotionPlausibility
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.dispatch import TypeDispatch
+from overdrive.servers.move_arrivals import sample_times
 from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, PlannerMachine
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
@@ -95,6 +97,9 @@ from overdrive.servers.speed_table import ESTOP_CAUSES, FaultCode, estop_cause
 SOURCE = "move"
 TIME_EPS_S = 1e-9
 ENGINE_CUT_MODES = frozenset({"estop-disable", "inactive"})   # seed 000: the XGV kills the engine
+SENSOR_TOPICS = frozenset({Topic.GPS_INS, Topic.IMU, Topic.WHEEL_SPEED})
+"""Periodic sensors whose samples queued during a stall are dated at their own time
+(``move_arrivals``): the integrals over them (wheel odometer, IMU) never credit a stall to one."""
 SHORTEST_DECEL_MPS2 = 0.1   # floor of the hardest deceleration (a slope steeper than the tyres hold)
 
 # --------------------------------------------------------------------------- phases (table)
@@ -113,8 +118,9 @@ EVENTS: dict[str, str] = {
     "done": "the distance is used up and the vehicle stands",
     "stopped": "the vehicle stands after a STOP",
     "estop": "radar target inside the stopping distance plus margin",
-    "interrupt": "the vehicle left drive-by-wire or speed control, or the speed server stopped "
-                 "it on its own (watchdog, a timeout): the command is discarded",
+    "interrupt": "the vehicle left drive-by-wire or speed control, the speed server stopped it "
+                 "on its own (watchdog, a timeout), the driving module stopped it for loss of "
+                 "command traffic, or this server stalled: the command is discarded",
     "failed": "the speed server holds the vehicle after a direction fault (rollback, a grade the "
               "gear cannot climb, issue 16): the command is abandoned, never done",
 }
@@ -180,6 +186,10 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     radar: RadarConfig = RadarConfig()   # corridor, radar health, reverse limits (move_radar)
     planner_machine: PlannerMachine = "same"   # the planner's clock: this machine's or another's
                                                # (move_clock; docs/move-server.md)
+    stall_s: float = 0.2               # a step gap beyond this is a stall of this server: the
+                                       # driving module's command_silence_s (same figure: seed
+                                       # 001's 200 ms budget), after which it has stopped the
+                                       # vehicle for loss of command traffic
 
 
 class ActiveCommand(msgspec.Struct, frozen=True):
@@ -207,6 +217,8 @@ class MoveServer:
         self.config = cfg = config or MoveServerConfig()
         if not (math.isfinite(cfg.friction) and cfg.friction > 0.0):
             raise ValueError(f"friction: must be a positive finite number, got {cfg.friction}")
+        if not (math.isfinite(cfg.stall_s) and cfg.stall_s > 0.0):
+            raise ValueError(f"stall_s: must be a positive finite number, got {cfg.stall_s}")
         self.ellipse = ellipse_for(params, cfg.friction, cfg.envelope)
         self.gears = GearTable(params)
         self.model = ActuatorModel(params, cfg.adaptive)
@@ -245,6 +257,9 @@ class MoveServer:
         self.speed_stop_code = 0   # an e-stop the speed server latched on its own, since last step
         self.speed_stop_cause = ""   # its name (the interruption's code), since last step
         self.speed_seen: tuple[float, int] | None = None   # (started_s, unasked_stops) last seen
+        self.driving_seen: tuple[float, int] | None = None   # the same of the driving module
+        self.driving_stops = 0     # its unasked stops (loss of command traffic) since last step
+        self.stall_gap_s = 0.0     # this server's own step gap beyond stall_s, this step
         self.hold_clear_since_accept = False   # a non-failed direction hold seen since accepted
         self.driving: DrivingStatus | None = None
         self.wheel_mps: float | None = None
@@ -405,7 +420,23 @@ class MoveServer:
             self.speed_stop_cause = cause or estop_cause(code)
 
     def _driving(self, now_s: float, msg: DrivingStatus, out: list) -> None:
+        count, started_s = msg.unasked_stops, msg.started_s
+        if (not isinstance(count, int) or isinstance(count, bool) or count < 0
+                or not finite(started_s)):
+            self._finite_sensor(False, "driving_status: unasked_stops or started_s invalid", out)
+            return
+        seen = self.driving_seen
+        if seen is not None and started_s == seen[0] and count < seen[1]:
+            return   # older than one already seen (reordered): it reports no new stop
         self.driving = msg
+        self.driving_seen = (started_s, count)
+        if seen is None:
+            return   # the count before this server knew the module: nothing it drove was stopped
+        # a rise (by one or more: the reports between may be lost) is a stop the driving module
+        # made on its own; a restarted module (another start) counts from 0
+        base = seen[1] if started_s == seen[0] else 0
+        if count > base:
+            self.driving_stops += count - base
 
     def _steer_cmd(self, now_s: float, msg: SteerCommand, out: list) -> None:
         if finite(msg.steer_pct):
@@ -420,14 +451,20 @@ class MoveServer:
         out: list[tuple[str, Any]] = []
         commands: list[Any] = []
         dispatch = self._dispatch
-        for topic, msg in inbox:
+        # a sensor sample counts at its own time, not at its arrival: after a stall the queue is
+        # read at once, and one reading must not be credited for the whole gap (issue 38)
+        times = sample_times(inbox, SENSOR_TOPICS, self.last_now_s, now_s)
+        for (topic, msg), at_s in zip(inbox, times, strict=True):
             if topic == Topic.MOVE_COMMAND:
                 commands.append(msg)
                 continue
-            dispatch(now_s, msg, out)
+            dispatch(at_s, msg, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
         cfg = self.config
+        # this server did not run for longer than the driving module waits for its stream: a
+        # stall (the vehicle was stopped meanwhile, a STOP waited unread); judged in _classify
+        self.stall_gap_s = dt_s if dt_s > cfg.stall_s + TIME_EPS_S else 0.0
         out.extend((Topic.NOTICE, n) for n in self.motion.step(
             now_s, -1 if self.direction == "reverse" else 1))
         if self.hold_state is None and self.status is not None:
@@ -450,7 +487,7 @@ class MoveServer:
         out.extend((Topic.NOTICE, n) for n in self.corridor.update(
             now_s, self.gps, self._path_curvatures(), self.direction == "forward",
             progress_m=self.progress_m("forward"), pose_trusted=self.motion.trusted("gps_ins")))
-        self._learn(dt_s)
+        self._learn(min(dt_s, MAX_CONTROL_STEP_S))   # a stall is not one long learning step
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
             self._command(now_s, cmd, out)
@@ -833,15 +870,36 @@ class MoveServer:
         stop the stack did not ask for: an emergency stop the speed server latched on its own
         (``SpeedState.estop_code`` above the client range: its SPSS watchdog, a sensor or
         vehicle command timeout, an actuator fault), a rise of ``SpeedState.unasked_stops``
-        whose report was lost, or a restarted speed server (``started_s`` later). Either way
-        nothing moves until a new command."""
+        whose report was lost, a restarted speed server (``started_s`` later), a stop the
+        driving module made for loss of command traffic (a rise of
+        ``DrivingStatus.unasked_stops``), or a stall of this server (a step gap beyond
+        ``stall_s``) while a command was in force or the vehicle moved. Either way nothing
+        moves until a new command. A stall with nothing at stake is reported as a fault."""
         status = self.status
         stop_code, self.speed_stop_code = self.speed_stop_code, 0
         stop_cause, self.speed_stop_cause = self.speed_stop_cause, ""
+        driving_stops, self.driving_stops = self.driving_stops, 0
+        gap_s, self.stall_gap_s = self.stall_gap_s, 0.0
+        at_stake = self.active is not None or abs(self.speed_mps) >= self.config.standstill_mps
+        stalled = gap_s > 0.0 and at_stake
+        if self._interrupted(status, stop_code, stop_cause, driving_stops, stalled, gap_s, out):
+            return True
+        if gap_s > 0.0:   # no silent pass: a stall that interrupted nothing is still a fault
+            out.append((Topic.NOTICE, Notice(
+                kind="fault", source=SOURCE, code="move_stall",
+                reason=f"the move server did not run for {gap_s:.2f} s (beyond "
+                       f"{self.config.stall_s:.2f} s: stalled); nothing to interrupt "
+                       f"(phase {self.phase}, {'a command in force' if self.active else 'no command'}"
+                       f", {abs(self.speed_mps):.2f} m/s)")))
+        return False
+
+    def _interrupted(self, status: VehicleStatus | None, stop_code: int, stop_cause: str,
+                     driving_stops: int, stalled: bool, gap_s: float, out: list) -> bool:
+        """``_interruption``'s decision and its notice (the causes taken from this step)."""
         if not self.engaged or self.phase == "estopped" or status is None:
             return False
         mode_ok = status.safety_mode == "drive-by-wire" and status.computer_speed
-        if mode_ok and not stop_cause:
+        if mode_ok and not stop_cause and not driving_stops and not stalled:
             return False
         discarded = self.active
         self.active = None
@@ -851,14 +909,28 @@ class MoveServer:
         what = (f"command {discarded.command.command_id} discarded" if discarded is not None
                 else "no command active")
         if mode_ok:
-            ss = self.speed_state
-            message = (ss.fault_message if ss is not None and stop_code and ss.fault == stop_code
-                       else "")
-            what_stop = (f"speed server emergency stop (fault {stop_code}"
-                         f"{': ' + message if message else ''})" if stop_code
-                         else f"speed server stop ({stop_cause})")
+            if stop_cause:
+                ss = self.speed_state
+                message = (ss.fault_message if ss is not None and stop_code
+                           and ss.fault == stop_code else "")
+                code = stop_cause
+                what_stop = (f"speed server emergency stop (fault {stop_code}"
+                             f"{': ' + message if message else ''})" if stop_code
+                             else f"speed server stop ({stop_cause})")
+            elif stalled:
+                code = "move_stall"
+                what_stop = (f"the move server did not run for {gap_s:.2f} s (beyond "
+                             f"{self.config.stall_s:.2f} s: stalled; the driving module stops "
+                             f"the vehicle when its stream goes quiet"
+                             f"{', and did' if driving_stops else ''})")
+            else:
+                code = "command_silence"
+                what_stop = ("the driving module stopped the vehicle for loss of command "
+                             "traffic (this server's authorization stream went quiet"
+                             + (f": it did not run for {gap_s:.2f} s" if gap_s > 0.0 else "")
+                             + ")")
             out.append((Topic.NOTICE, Notice(
-                kind="interrupted", source=SOURCE, code=stop_cause,
+                kind="interrupted", source=SOURCE, code=code,
                 reason=f"{what_stop}: {what}; nothing moves until a new command")))
             return True
         out.append((Topic.NOTICE, Notice(
