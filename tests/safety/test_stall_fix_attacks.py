@@ -27,9 +27,6 @@ def _jaus_low_speed_cut(speed_mps: float, cut_s: float) -> Any:
     return run_scenario(sc, None, keep_trace=True, nodes=build_nodes(sc), plot=False)
 
 
-@pytest.mark.xfail(strict=True, reason="FollowCheck treats a commanded speed <= FOLLOW_MARGIN_MPS "
-                   "(0.3 m/s) as always followed: the XGV's lapse to rest is never an unasked "
-                   "stop, and the old MOVE drives on when the link returns")
 @pytest.mark.parametrize(("speed_mps", "cut_s"), [(0.3, 1.0), (0.3, 2.0), (0.3, 3.0), (0.2, 2.0)])
 def test_a_one_way_cut_at_low_speed_in_motion_profile_never_drives_on_after_the_xgv_stopped(
         speed_mps: float, cut_s: float) -> None:

@@ -21,6 +21,7 @@ from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv_client import (
     FOLLOW_FALL_MPS,
     FOLLOW_MARGIN_MPS,
+    FOLLOW_REST_REPORTS,
     FollowCheck,
     XgvClient,
     XgvClientConfig,
@@ -164,3 +165,22 @@ def test_a_driver_holding_the_speed_is_not_the_xgv_ignoring_its_command() -> Non
         client.speed_mps = v
         client._follow_check()
     assert client.timeout_latched
+
+
+def test_an_xgv_standing_against_a_slow_command_after_moving_is_not_following() -> None:
+    """Under the follow margin (0.3 m/s) a lapsed motion at 0.2 m/s still stands against its
+    command: 0.3 s at rest after it moved is a stop nobody asked for."""
+    check = FollowCheck()
+    assert check.check(0.2, 0.2) is None
+    found = [check.check(0.2, 0.0) for _ in range(FOLLOW_REST_REPORTS)]
+    assert found[:-1] == [None] * (FOLLOW_REST_REPORTS - 1) and "stands against" in found[-1]
+
+
+def test_an_xgv_that_has_not_moved_yet_or_is_asked_to_stop_is_following() -> None:
+    """Starting from rest (never moved under this command), and a command at rest speed, are
+    no lapse however long they last."""
+    check = FollowCheck()
+    assert [check.check(0.3, 0.0) for _ in range(200)] == [None] * 200
+    check = FollowCheck()
+    assert check.check(0.5, 0.5) is None
+    assert [check.check(0.04, 0.0) for _ in range(200)] == [None] * 200

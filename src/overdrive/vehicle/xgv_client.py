@@ -159,6 +159,11 @@ FOLLOW_FALL_MPS: Final = 1.0         # below that, its speed falling this far fr
                                      # margin (0.00 m/s: 1-15 m/s, curves, +-8 % grade, 5-50 %
                                      # loss, reverse; measured)
 FOLLOW_REST_MPS: Final = 0.05        # at rest (the simulated MPD's standstill, xgv.STOPPED_MPS)
+FOLLOW_REST_REPORTS: Final = 30      # after it moved, at rest this many Velocity States in a row
+                                     # (0.3 s at 100 Hz) against a command to move (above the
+                                     # rest speed) is not following, however slow the command:
+                                     # under the margin a lapsed motion at 0.2-0.3 m/s stopped
+                                     # and the old MOVE drove on unseen (red team, measured)
 ERROR_PAUSE_BIT: Final = 1 << 7      # Report Vehicle Mode safety devices: error pause (the
                                      # XGV's own 0.5 s wrench command timeout, or its error)
 POSE_NOISE_SIGMAS: Final = 3.0       # position noise allowance on that chord
@@ -303,17 +308,30 @@ class FollowCheck:
 
     def __init__(self) -> None:
         self.peak_mps: float | None = None   # highest speed since it last followed
+        self.moved = False                   # moved since the command became non-zero
+        self.at_rest = 0                     # reports in a row at rest since it moved
 
     def reset(self) -> None:
         self.peak_mps = None
+        self.moved = False
+        self.at_rest = 0
 
     def check(self, commanded_mps: float, reported_mps: float) -> str | None:
         if not (math.isfinite(commanded_mps) and math.isfinite(reported_mps)) \
                 or commanded_mps == 0.0:
-            self.peak_mps = None
+            self.reset()
             return None
         direction = 1.0 if commanded_mps > 0.0 else -1.0
         speed_mps = direction * reported_mps          # along the commanded direction
+        if speed_mps > FOLLOW_REST_MPS:
+            self.moved, self.at_rest = True, 0
+        elif self.moved and abs(commanded_mps) > FOLLOW_REST_MPS:
+            self.at_rest += 1
+            if self.at_rest >= FOLLOW_REST_REPORTS:
+                self.reset()
+                return (f"the XGV stands against its command: at rest for "
+                        f"{FOLLOW_REST_REPORTS} reports, commanded {abs(commanded_mps):.2f} m/s: "
+                        f"its motion lapsed (Set Motion Profile not reaching it)")
         if abs(commanded_mps) <= speed_mps + FOLLOW_MARGIN_MPS:
             self.peak_mps = speed_mps
             return None
