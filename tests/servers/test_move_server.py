@@ -648,3 +648,13 @@ def test_an_old_speed_state_arriving_late_still_stops_when_it_reports_an_estop(p
                                             estop=True, estop_code=1001))
     notice = last(out, Topic.NOTICE)
     assert (notice.kind, notice.code) == ("interrupted", "watchdog") and node.active is None
+
+
+def test_a_reverse_with_no_track_behind_is_clamped_to_the_blind_allowance_and_says_so(
+        preset) -> None:
+    """No rear sensor: a REVERSE from where the vehicle has not driven forward is accepted,
+    clamped to ``reverse_blind_m``, and the reply says so (the planner is told)."""
+    node = MoveServer(preset)
+    out = run(node, 0.0, 0.5, (cmd(kind="reverse", d=5.0, v=1.0),))
+    reply = last(out, Topic.MOVE_REPLY)
+    assert reply.accepted and "distance clamped to 1.00 m" in reply.message
