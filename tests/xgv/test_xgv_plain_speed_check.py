@@ -109,7 +109,8 @@ def test_velocity_state_reading_low_while_the_pose_moves_stops_the_vehicle(
     def low_speed(simulator: Any, m: Any, now_s: float) -> Any:
         if isinstance(m, ReportGlobalPose) and rms_m is not None:
             m = msgspec.structs.replace(m, position_rms_m=rms_m)
-        if isinstance(m, ReportVelocityState) and now_s >= 2.0:
+        if (isinstance(m, ReportVelocityState) and m.velocity_x_mps is not None
+                and now_s >= 2.0):
             return msgspec.structs.replace(m, velocity_x_mps=scale * m.velocity_x_mps)
         return m
 
@@ -153,7 +154,8 @@ def test_a_low_speed_at_1m_rms_is_caught_before_the_move_is_driven(preset: str, 
 
     def low(simulator: Any, m: Any, now_s: float) -> Any:
         m = base(simulator, m, now_s)
-        if isinstance(m, ReportVelocityState) and now_s >= 2.0:
+        if (isinstance(m, ReportVelocityState) and m.velocity_x_mps is not None
+                and now_s >= 2.0):
             return msgspec.structs.replace(m, velocity_x_mps=scale * m.velocity_x_mps)
         return m
 

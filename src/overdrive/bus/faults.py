@@ -70,16 +70,35 @@ class ChannelFaults:
                 Window(kind, start_s, start_s + for_s, delay_s, fraction))
 
     def route(self, topic: str, msg: Any) -> Sequence[Any]:
+        """What becomes of ``msg`` on ``topic`` now. Windows open together compose as a real
+        link's faults do: a drop or a loss first (each loss window draws), then every delay
+        (added), then the first duplicate or reorder."""
         windows = self.windows.get(topic)
         if windows:
-            for window in windows:
-                if window.open_at(self.now_s):
-                    return self._apply(window, topic, msg)
+            open_now = [w for w in windows if w.open_at(self.now_s)]
+            if open_now:
+                return self._compose(open_now, topic, msg)
         if self.reorder_slot:   # a message held back for a swap: it goes out after this one
             held = self.reorder_slot.pop(topic, None)
             if held is not None:
                 return (msg, held[0])
         return (msg,)
+
+    def _compose(self, windows: list[Window], topic: str, msg: Any) -> Sequence[Any]:
+        for window in windows:
+            if window.kind == "drop":
+                self.counts["drop"] += 1
+                return ()
+            if window.kind == "loss" and self._apply(window, topic, msg) == ():
+                return ()
+        delay_s = sum(w.delay_s for w in windows if w.kind == "delay")
+        if delay_s > 0.0:
+            self.counts["delay"] += 1
+            self._order += 1
+            self.held.append((self.now_s + delay_s, self._order, topic, msg))
+            return ()
+        rest = [w for w in windows if w.kind in ("duplicate", "reorder")]
+        return self._apply(rest[0], topic, msg) if rest else (msg,)
 
     def _apply(self, window: Window, topic: str, msg: Any) -> Sequence[Any]:
         if window.kind == "loss":

@@ -290,8 +290,8 @@ class XgvSensorNode:
         return self.client.sensor_outputs(now_s)
 
     def link_report(self) -> dict[str, Any]:
-        """``summary.json`` ``link``: the reports' age, the round trip and the loss measured."""
-        return self.client.link_time.report()
+        """``summary.json`` ``link``: the reports' age, the round trips and the loss measured."""
+        return {**self.client.link_time.report(), "probes": self.client.round_trips.report()}
 
     def close(self) -> None:
         self.port.close()

@@ -21,6 +21,13 @@ fastest delivery. The fastest delivery itself is bounded by the shortest round t
 (Query Component Control to its Report, ``round_trip``): age <= excess + shortest round trip.
 That upper bound is the report's ``age_s``: it never reads younger than the report is, and it
 sees a delay present from the first report as well as one that comes later.
+
+**Round trip.** A delay on the way to the vehicle only leaves the reports fresh: the age cannot
+see it, yet every command acts late (0.5 s: 9.17 m/s on an 8 m/s MOVE in wrench mode). JAUS 3.3
+queries carry no request id, so ``RoundTrips`` tags them: each probe is a Query Velocity State
+whose presence vector is one of ``PROBE_TAGS``, and the report answering it has exactly those
+fields. An answer is matched to its own probe, so loss never lengthens a round trip (timing
+from the oldest unanswered query does: one lost query in five reads as 0.2 s more).
 """
 
 from __future__ import annotations
@@ -39,6 +46,19 @@ GAP_S: Final = 0.25                  # reports missing longer than this (a lost 
 RECEIVER_STALL_S: Final = 0.2        # steps further apart than this: we were not stepped
                                      # (SIGSTOP, a scheduler stall) for longer than the stack
                                      # promises a stop after silence (SPSS watchdog, 200 ms)
+PROBE_TAGS: Final = tuple(range(2, 0x200, 2))   # Velocity State presence vectors: any of its
+                                     # 9 fields but velocity x (bit 0), so an answer is never
+                                     # taken for a speed sample and never equals the stream's
+                                     # (every field); 255 tags
+PROBE_PERIOD_S: Final = 0.01         # a probe every 10 ms step once the vehicle answers them:
+                                     # tags come round after 2.55 s (a delay that long is
+                                     # seen long before an answer could be matched to a later
+                                     # probe with its tag)
+PROBE_UNARMED_PERIOD_S: Final = 0.1  # until the first answer: tags come round after 25.5 s, so
+                                     # a link delayed from the start is measured, not aliased
+PROBE_WINDOW_S: Final = 0.2          # the round trip is the shortest answered in the last this
+                                     # (20 probes: one late answer, a host hiccup, is not a
+                                     # delay; at 50 % loss each way ~5 are answered)
 MAX_AGE_SAMPLES: Final = 200_000     # ages kept for the summary (over half an hour at 100 Hz)
 SEQUENCE_SPAN: Final = 0x10000       # JAUS header sequence numbers are u16
 
@@ -162,4 +182,80 @@ class LinkTime:
         }
 
 
-__all__ = ["GAP_S", "RECEIVER_STALL_S", "LinkTime", "SourceClock", "stamp_delta_s", "stamp_s"]
+def presence_vector(message: Any) -> int:
+    """The presence vector of a decoded report: the bits of the fields it holds."""
+    names = type(message).layout.names
+    return sum(1 << bit for bit, name in enumerate(names) if getattr(message, name) is not None)
+
+
+class RoundTrips:
+    """Round trips of tagged probes, each answer matched to its own probe (sans-IO).
+
+    ``probe`` says when a probe is due and with which tag; ``answer`` takes the tag of an
+    answer (its presence vector). ``round_trip_s`` is the shortest round trip answered in the
+    last ``PROBE_WINDOW_S``: a delay on either way shows in full, loss not at all. A vehicle
+    that never answers leaves it unmeasured (None) and is never faulted for it; unanswered
+    probes say nothing (lost, or a cut the client's other checks see)."""
+
+    def __init__(self) -> None:
+        self.sent: dict[int, float] = {}      # tag -> when the probe with it went out
+        self.next_tag = 0
+        self.next_s = -math.inf
+        self.armed = False                    # the vehicle has answered a probe
+        self.answers: list[tuple[float, float]] = []   # (arrival, round trip), last window
+        self.probes = self.answered = 0
+        self.round_trips_s: list[float] = []  # for the summary (bounded like the ages)
+
+    def reset(self) -> None:
+        """The link went down: the other end may not answer probes any more."""
+        self.sent.clear()
+        self.answers.clear()
+        self.armed = False
+        self.next_s = -math.inf
+
+    def probe(self, now_s: float) -> int | None:
+        """The tag of a probe to send now, or None when none is due."""
+        if now_s < self.next_s - 1e-9:
+            return None
+        tag = PROBE_TAGS[self.next_tag]
+        self.next_tag = (self.next_tag + 1) % len(PROBE_TAGS)
+        self.sent[tag] = now_s
+        self.probes += 1
+        self.next_s = now_s + (PROBE_PERIOD_S if self.armed else PROBE_UNARMED_PERIOD_S)
+        return tag
+
+    def answer(self, tag: int, now_s: float) -> float | None:
+        """The round trip of the probe ``tag`` answers; None for a tag not out (a repeat, a
+        stranger's, a reply to another client's query)."""
+        sent_s = self.sent.pop(tag, None)
+        if sent_s is None or now_s < sent_s:
+            return None
+        round_trip_s = now_s - sent_s
+        self.armed = True
+        self.answered += 1
+        self.answers.append((now_s, round_trip_s))
+        if len(self.round_trips_s) < MAX_AGE_SAMPLES:
+            self.round_trips_s.append(round_trip_s)
+        return round_trip_s
+
+    def round_trip_s(self, now_s: float) -> float | None:
+        """The shortest round trip answered in the last ``PROBE_WINDOW_S`` (None: none)."""
+        self.answers = [a for a in self.answers if now_s - a[0] <= PROBE_WINDOW_S]
+        return min((rt for _, rt in self.answers), default=None)
+
+    def report(self) -> dict[str, Any]:
+        """``summary.json`` ``link.probes``: probes sent, answered, round trips in ms."""
+        trips = sorted(self.round_trips_s)
+
+        def ms(value: float) -> float:
+            return round(1000.0 * value, 1)
+
+        return {"sent": self.probes, "answered": self.answered,
+                "round_trip_ms": ({"median": ms(statistics.median(trips)),
+                                   "p95": ms(trips[min(len(trips) - 1,
+                                                       math.ceil(0.95 * len(trips)) - 1)]),
+                                   "max": ms(trips[-1])} if trips else None)}
+
+
+__all__ = ["GAP_S", "PROBE_TAGS", "RECEIVER_STALL_S", "LinkTime", "RoundTrips", "SourceClock",
+           "presence_vector", "stamp_delta_s", "stamp_s"]

@@ -69,6 +69,7 @@ from overdrive.jaus import (
     QueryHeartbeatPulse,
     QueryIdentification,
     QueryServices,
+    QueryVelocityState,
     ReadyMode,
     RejectComponentControl,
     ReleaseComponentControl,
@@ -114,7 +115,15 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.gate import GateLimits, gate_pedals
-from overdrive.vehicle.link_time import GAP_S, RECEIVER_STALL_S, LinkTime, SourceClock, stamp_s
+from overdrive.vehicle.link_time import (
+    GAP_S,
+    RECEIVER_STALL_S,
+    LinkTime,
+    RoundTrips,
+    SourceClock,
+    presence_vector,
+    stamp_s,
+)
 from overdrive.vehicle.modes import SAFETY_MODES, computer_axes
 from overdrive.vehicle.plain_jaus import (
     STATUS_TIMEOUT_S,
@@ -138,12 +147,17 @@ AGE_DEGRADED_S: Final = 0.05         # reports older than this (five 10 ms perio
 AGE_STOP_S: Final = 0.125            # older than this: a fault and an unasked stop, latched (the
                                      # wrench speed loop held a limit to 0.01 m/s at 110 ms of
                                      # delay each way, overshot it by 0.5 m/s at 160 ms)
+ROUND_TRIP_DEGRADED_S: Final = 2 * AGE_DEGRADED_S   # a round trip longer than this: degraded,
+ROUND_TRIP_STOP_S: Final = 2 * AGE_STOP_S   # and an unasked stop (round trips are judged as
+                                     # two ages: a delay towards the vehicle only is bounded as
+                                     # one both ways; 0.3 s towards it: 8.37 m/s on an 8 m/s
+                                     # MOVE in wrench, 0.2 s: 8.22 m/s, measured)
 AGE_DISTANCE_M: Final = 0.4          # degraded: max speed = this / age, so the stack never sees
                                      # the vehicle further behind than this (8 m/s at 50 ms)
 AGE_HOLD_S: Final = 1.0              # the degraded limit follows the oldest age of the last second
 LINK_SOURCE: Final = "xgv-link"      # MaxSpeed source of the degraded-link limit
-LINK_FAULTS: Final = ("xgv_stall", "xgv_report_gap", "xgv_report_age", "xgv_link_degraded",
-                      "xgv_not_following", "xgv_error_pause")
+LINK_FAULTS: Final = ("xgv_stall", "xgv_report_gap", "xgv_report_age", "xgv_round_trip",
+                      "xgv_link_degraded", "xgv_not_following", "xgv_error_pause")
 """Fault codes of time the reports cannot account for, a degraded link, or commands the XGV
 does not execute: a run with one fails unless its scenario expects it (no silent pass;
 ``run.sim.make_summary``)."""
@@ -460,6 +474,8 @@ class XgvClient:
         self.start_failed = False
         # time from the source (vehicle.link_time, docs/xgv.md "Time from the source")
         self.link_time = LinkTime()
+        self.round_trips = RoundTrips()   # tagged probes: the delay towards the vehicle too
+        self.round_trip_s: float | None = None
         self.velocity_clock = SourceClock()
         self.velocity_source_s: float | None = None   # the last velocity report's stamp
         self.gap_in_step = False        # a stamp gap beyond ODOMETER_GAP_S since the last publish
@@ -611,6 +627,13 @@ class XgvClient:
         elif isinstance(m, ReportDiscreteDevices):
             self._discrete_report(m)
         elif isinstance(m, ReportVelocityState):
+            if (not m.header.service_connection and m.velocity_x_mps is None
+                    and source == self.wanted[ReportVelocityState.code]):
+                # an answer to a probe (its presence vector is the tag), never a speed sample
+                round_trip_s = self.round_trips.answer(presence_vector(m), now_s)
+                if round_trip_s is not None:   # exact: bounds the fastest delivery too
+                    self.link_time.round_trip(round_trip_s)
+                return
             self._velocity_report(m, now_s)
         elif isinstance(m, ReportLocalPose) and not self.plain:
             self.pose = m
@@ -771,6 +794,7 @@ class XgvClient:
             self.control = False
             self.connections.clear()
             self.link_time.reset()   # the XGV may come back on another clock
+            self.round_trips.reset()
             self._notice("heartbeat", reason)
         if self.pose_refused is not None and now_s - self.pose_s > ODOMETER_GAP_S:
             # refused fixes cost the stack its position: a fault. One refused fix among good
@@ -839,21 +863,33 @@ class XgvClient:
         return self.report_age_s is not None and self.report_age_s > AGE_STOP_S
 
     def _age_check(self, now_s: float, out: list[tuple[str, Any]]) -> None:
-        """The newest report's age: beyond ``AGE_DEGRADED_S`` the link is degraded (a fault
-        once per onset, and a max speed of ``AGE_DISTANCE_M`` per second of age); beyond
-        ``AGE_STOP_S`` an unasked stop, latched (``_unasked_stop``)."""
+        """The newest report's age and the round trip of the probes (as an age: half of it):
+        beyond ``AGE_DEGRADED_S`` the link is degraded (a fault once per onset, and a max speed
+        of ``AGE_DISTANCE_M`` per second of age); beyond ``AGE_STOP_S`` an unasked stop,
+        latched (``_unasked_stop``). Probes unanswered say nothing (lost, or a cut the other
+        checks see); a probe answered late is a delay."""
         age_s = self.report_age_s
         if age_s is None:
             return
+        round_trip_s = self.round_trip_s = (self.round_trips.round_trip_s(now_s) if self.control
+                                            else None)
         if age_s > AGE_STOP_S:
             self._unasked_stop("report_age", f"Velocity State {age_s * 1000:.0f} ms old "
                                              f"(bound {AGE_STOP_S * 1000:.0f} ms)")
+        if round_trip_s is not None and round_trip_s > ROUND_TRIP_STOP_S:
+            self._unasked_stop("round_trip", f"probes answered {round_trip_s * 1000:.0f} ms "
+                                             f"after they were sent (bound "
+                                             f"{ROUND_TRIP_STOP_S * 1000:.0f} ms): commands act "
+                                             f"that late")
+        why = f"Velocity State {age_s * 1000:.0f} ms old"
+        if round_trip_s is not None and round_trip_s / 2.0 > age_s:
+            age_s, why = round_trip_s / 2.0, f"probes answered in {round_trip_s * 1000:.0f} ms"
         if age_s > AGE_DEGRADED_S:
             if now_s - self.degraded_s > AGE_HOLD_S:
                 self._told.discard("link_degraded")   # a new onset
                 self.degraded_age_s = 0.0
-            self._notice("link_degraded", f"Velocity State {age_s * 1000:.0f} ms old (bound "
-                                          f"{AGE_DEGRADED_S * 1000:.0f} ms): max speed lowered")
+            self._notice("link_degraded", f"{why} (bound {AGE_DEGRADED_S * 1000:.0f} ms each "
+                                          f"way): max speed lowered")
             self.degraded_age_s = max(self.degraded_age_s, age_s)
             self.degraded_s = now_s
         elif now_s - self.degraded_s > AGE_HOLD_S:
@@ -1002,6 +1038,10 @@ class XgvClient:
                 self.next_heartbeat_query_s = now_s + HEARTBEAT_QUERY_PERIOD_S
             if self.control and now_s >= self.next_control_query_s - TIME_EPS_S:
                 messages.extend(self._query_control(now_s))
+            tag = self.round_trips.probe(now_s) if self.control else None
+            if tag is not None:
+                messages.append(self._to(QueryVelocityState(presence_vector=tag),
+                                         self.wanted[ReportVelocityState.code]))
             if not self.control and now_s >= self.next_request_s:
                 messages.append(self._to(RequestComponentControl(authority=cfg.authority),
                                          self.target))
