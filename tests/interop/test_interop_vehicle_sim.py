@@ -54,6 +54,13 @@ def test_client_holds_control_of_openjaus_vehicle_sim(openjaus_vsim: Path, kit: 
     assert held["losses"] == 0 and held["first_s"] < 2.0, held   # held, never lost once known
     assert "xgv_heartbeat" not in faults and "xgv_control" not in faults, faults
     assert client.speed_mps > 0.5                       # the OpenJAUS vehicle moves
+    # its Velocity State Sensor answers the tagged probes with exactly the fields asked, so
+    # each answer is matched to its probe (vehicle.link_time.RoundTrips); 20 Hz of them does
+    # not starve its 50 Hz state loop (100 Hz did: no reports, the vehicle never moved)
+    probes = client.round_trips.report()
+    print(f"probes {probes}")
+    assert probes["answered"] >= probes["sent"] // 2, probes
+    assert probes["round_trip_ms"]["median"] < 100.0, probes
 
 
 def drive(port: UdpPort) -> tuple[XgvClient, dict[str, float]]:

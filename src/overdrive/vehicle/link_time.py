@@ -50,15 +50,14 @@ PROBE_TAGS: Final = tuple(range(2, 0x200, 2))   # Velocity State presence vector
                                      # 9 fields but velocity x (bit 0), so an answer is never
                                      # taken for a speed sample and never equals the stream's
                                      # (every field); 255 tags
-PROBE_PERIOD_S: Final = 0.01         # a probe every 10 ms step once the vehicle answers them:
-                                     # tags come round after 2.55 s (a delay that long is
-                                     # seen long before an answer could be matched to a later
-                                     # probe with its tag)
+PROBE_PERIOD_S: Final = 0.05         # a probe every 50 ms once the vehicle answers them (100 Hz
+                                     # starved OpenJAUS's 50 Hz Velocity State Sensor loop: it
+                                     # sent no reports); tags come round after 12.75 s
 PROBE_UNARMED_PERIOD_S: Final = 0.1  # until the first answer: tags come round after 25.5 s, so
                                      # a link delayed from the start is measured, not aliased
-PROBE_WINDOW_S: Final = 0.2          # the round trip is the shortest answered in the last this
-                                     # (20 probes: one late answer, a host hiccup, is not a
-                                     # delay; at 50 % loss each way ~5 are answered)
+PROBE_WINDOW_S: Final = 0.3          # the round trip is the shortest answered in the last this
+                                     # (6 probes: one late answer, a host hiccup, is not a
+                                     # delay; none answered, as often at 50 % loss, is no verdict)
 MAX_AGE_SAMPLES: Final = 200_000     # ages kept for the summary (over half an hour at 100 Hz)
 SEQUENCE_SPAN: Final = 0x10000       # JAUS header sequence numbers are u16
 
@@ -231,7 +230,9 @@ class RoundTrips:
         if sent_s is None or now_s < sent_s:
             return None
         round_trip_s = now_s - sent_s
-        self.armed = True
+        if not self.armed:   # it answers: probe at the full rate from now on
+            self.armed = True
+            self.next_s = min(self.next_s, now_s)
         self.answered += 1
         self.answers.append((now_s, round_trip_s))
         if len(self.round_trips_s) < MAX_AGE_SAMPLES:
