@@ -1,9 +1,12 @@
-"""The lock-step sweep behind docs/xgv.md's "A lossy link" figures: a 60 m MOVE at 8 m/s from
-rest over ``interface: jaus`` (real UDP on loopback), with loss (5-50 % in steps of 5 %, seeds
-0-4, from 0.4 s) or a cut (0.1-2.0 s in steps of 0.1 s, at 4 s and 6.5 s), judged from the
-simulated XGV's own state. One line per run, then a summary; exit 1 if any run was violated.
+"""The lock-step sweep behind docs/xgv.md's "A lossy link" and "A delay towards the vehicle"
+figures: a 60 m MOVE at 8 m/s from rest over ``interface: jaus`` (real UDP on loopback), with
+loss (5-50 % in steps of 5 %, seeds 0-4, from 0.4 s), a cut (0.1-2.0 s in steps of 0.1 s, at
+4 s and 6.5 s) or a delay towards the vehicle only (0.05-0.5 s in steps of 0.05 s, 1 s and 2 s,
+at 4 s while accelerating and at 8 s at cruise), judged from the simulated XGV's own state. One
+line per run, then a summary; exit 1 if any run was violated (for ``delay``: by anything but
+the link fault it is meant to raise).
 
-    .venv/bin/python scripts/jaus_link_sweep.py loss|cut [--control wrench|motion-profile]
+    .venv/bin/python scripts/jaus_link_sweep.py loss|cut|delay [--control wrench|motion-profile]
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ def one_run(seed: int, fault: dict[str, Any], control: str) -> dict[str, Any]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("kind", choices=["loss", "cut"])
+    parser.add_argument("kind", choices=["loss", "cut", "delay"])
     parser.add_argument("--control", choices=["wrench", "motion-profile"], default="wrench")
     args = parser.parse_args()
     runs: list[tuple[str, dict[str, Any]]] = []
@@ -42,6 +45,12 @@ def main() -> int:
         cases = [(f"loss {5 * i} % seed {seed}", seed,
                   {"at_s": 0.4, "loss": {"channel": "jaus", "for_s": 18, "fraction": 0.05 * i}})
                  for i in range(1, 11) for seed in range(5)]
+    elif args.kind == "delay":
+        cases = [(f"delay {d:.2f} s at {at} s", 1,
+                  {"at_s": at, "delay": {"channel": "jaus", "for_s": 18, "delay_s": d,
+                                         "direction": "to_vehicle"}})
+                 for d in [round(0.05 * i, 2) for i in range(1, 11)] + [1.0, 2.0]
+                 for at in (4.0, 8.0)]
     else:
         cases = [(f"cut {0.1 * i:.1f} s at {at} s", 1,
                   {"at_s": at, "drop": {"channel": "jaus", "for_s": round(0.1 * i, 1)}})
@@ -50,6 +59,9 @@ def main() -> int:
         got = one_run(seed, fault, args.control)
         runs.append((name, got))
         print(name, got, flush=True)
+    if args.kind == "delay":   # the stop it is meant to cause fails the run: not a violation
+        for _, got in runs:
+            got["violations"] = [v for v in got["violations"] if not v.startswith("link fault")]
     violated = [name for name, got in runs if got["violations"]]
     finals = [got["final_x_m"] for _, got in runs]
     print(f"{len(runs)} runs, {len(violated)} violated {violated}; final x "
