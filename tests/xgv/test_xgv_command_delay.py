@@ -15,10 +15,13 @@ from __future__ import annotations
 import itertools
 from typing import Any
 
+import msgspec
 import pytest
 
 from overdrive.jaus import JausId, QueryVelocityState, ReportVelocityState, encode_datagram
 from overdrive.jaus.messages import POSE_ALL
+from overdrive.run.compose import build_servers, lockstep_nodes
+from overdrive.run.sim import run_scenario
 from overdrive.vehicle.link_time import (
     PROBE_PERIOD_S,
     PROBE_TAGS,
@@ -28,13 +31,14 @@ from overdrive.vehicle.link_time import (
     presence_vector,
 )
 from overdrive.vehicle.xgv import jaus_timestamp
-from overdrive.vehicle.xgv_client import ROUND_TRIP_DEGRADED_S, ROUND_TRIP_STOP_S
+from overdrive.vehicle.xgv_client import AGE_DISTANCE_M, ROUND_TRIP_DEGRADED_S, ROUND_TRIP_STOP_S
 from tests.xgv.test_xgv_link_loss import (
     LIMIT_MPS,
     MOVE_M,
     SPEED_TOLERANCE_MPS,
     codes,
     run,
+    scenario,
     truth,
 )
 from tests.xgv.test_xgv_plain_profile import ME, VSS, controlling, deliver, sent
@@ -69,7 +73,8 @@ def assert_judged_safe(trace: list[dict[str, Any]], summary: dict[str, Any]) -> 
 # ----------------------------------------------------------------------------- whole runs
 
 @pytest.mark.parametrize("control", ["wrench", "motion-profile"])
-@pytest.mark.parametrize("delay_s", [0.03, 0.05, 0.1, 0.2, 0.23, 0.26, 0.3, 0.5, 1.0, 2.0])
+@pytest.mark.parametrize("delay_s", [0.03, 0.05, 0.1, 0.11, 0.12, 0.2, 0.23, 0.26, 0.3, 0.5,
+                                     1.0, 2.0])
 def test_a_delay_towards_the_vehicle_is_slowed_then_stopped_never_overrun_nor_over_the_limit(
         control: str, delay_s: float) -> None:
     """Delayed from 8 s at cruise: a round trip beyond 100 ms (50 ms as an age) lowers the
@@ -85,6 +90,10 @@ def test_a_delay_towards_the_vehicle_is_slowed_then_stopped_never_overrun_nor_ov
     assert stopped == (round_trip_s > ROUND_TRIP_STOP_S)
     probes = summary["link"]["probes"]
     assert probes["round_trip_ms"]["max"] == pytest.approx(1000.0 * round_trip_s, abs=0.5)
+    if ROUND_TRIP_DEGRADED_S < round_trip_s <= ROUND_TRIP_STOP_S:   # slower: 0.8 m per s
+        t, _, v = truth(trace)
+        late = [vi for ti, vi in zip(t, v, strict=True) if ti > AT_CRUISE_S + 3.0]
+        assert max(late) <= 2 * AGE_DISTANCE_M / round_trip_s + SPEED_TOLERANCE_MPS
     if round_trip_s > ROUND_TRIP_DEGRADED_S:
         assert result.exit_code == 1   # no silent pass
     else:
@@ -124,15 +133,64 @@ def test_a_delay_in_heavy_loss_is_measured_exactly_and_acted_on(
     assert ("xgv_round_trip" in codes(summary, "fault")) == (delay_s > ROUND_TRIP_STOP_S)
 
 
+@pytest.mark.parametrize("control", ["wrench", "motion-profile"])
+def test_after_the_stop_a_new_move_stays_held_while_the_delay_lasts(control: str) -> None:
+    """A runwait does not release the vehicle's command timeout while commands still act too
+    late (as for reports too old): the new MOVE is not driven and the stop is reported once,
+    not once a step; after the delay ends the next MOVE drives."""
+    events = [{"at_s": AT_CRUISE_S, "delay": {"channel": "jaus", "for_s": 6.0, "delay_s": 0.3,
+                                              "direction": "to_vehicle"}},
+              {"at_s": 11.0, "move": {"distance_m": 5, "maxspeed_mps": 3, "curvature_1pm": 0}},
+              {"at_s": 16.0, "move": {"distance_m": 5, "maxspeed_mps": 3, "curvature_1pm": 0}}]
+    result, _, trace = run(events, control=control, duration_s=24.0)
+    t, x, _ = truth(trace)
+    held = [xi for ti, xi in zip(t, x, strict=True) if 10.0 <= ti <= 14.0]
+    assert max(held) - min(held) < MOVED_AFTER_REST_M           # the MOVE of 11 s not driven
+    estops = [e for e in result.summary["events"]
+              if e["kind"] == "estop" and e.get("code") == "command_timeout"]
+    assert len(estops) <= 3, len(estops)
+    assert x[-1] > max(held) + 1.0                              # after it ends, it drives
+
+
+def test_a_plain_vehicle_with_unstamped_reports_is_judged_by_its_round_trip() -> None:
+    """OpenJAUS's Velocity State carries no time stamp, so its age is unknown; the probes still
+    measure the round trip and a delay towards it stops the vehicle (plain profile)."""
+    sc = scenario([towards_vehicle(0.3)], control="wrench")
+    nodes = lockstep_nodes(sc, build_servers(sc, over_jaus=True), profile="plain")
+    simulator = nodes[0].simulator
+    original = simulator._report
+
+    def unstamped(cid: int, code: int, presence: int, now_s: float) -> Any:
+        message = original(cid, code, presence, now_s)
+        if isinstance(message, ReportVelocityState):
+            return msgspec.structs.replace(message, timestamp=None)
+        return message
+
+    simulator._report = unstamped
+    result = run_scenario(sc, None, keep_trace=True, nodes=nodes, plot=False)
+    summary = result.summary
+    assert summary["link"]["latency_ms"]["samples"] == 0           # no age: unstamped
+    assert summary["link"]["probes"]["round_trip_ms"]["max"] == pytest.approx(300.0, abs=0.5)
+    assert "xgv_round_trip" in codes(summary, "fault")
+    assert_judged_safe(result.trace, summary)
+
+
 def test_a_delay_from_the_start_is_measured_not_aliased() -> None:
-    """Delayed 3 s towards the vehicle from the first datagram, longer than the tags take to
-    come round at the armed rate (2.55 s): the probes go out at the unarmed rate until one is
-    answered, so the first round trip read is the delay's, and the vehicle never moves."""
-    result, _, trace = run([towards_vehicle(3.0, at_s=0.0)], control="wrench")
-    probes = result.summary["link"]["probes"]
-    assert probes["answered"] == 0 or probes["round_trip_ms"]["max"] >= 3000.0
-    _, x, _ = truth(trace)
-    assert max(x) < 0.05
+    """A link delayed 14 s towards the vehicle from the start, longer than the tags take to come
+    round at the armed rate (12.75 s): until the vehicle first answers, probes go out at the
+    unarmed rate (tags round after 25.5 s), so the first answer reads the delay's 14 s. Sent
+    at the armed rate from the start, the same answer would name a probe 1.25 s old."""
+    trips = streaming()
+    sent = {}
+    now_s = 0.0
+    while now_s < 14.0:
+        tag = trips.probe(now_s)
+        if tag is not None:
+            sent.setdefault(tag, now_s)
+        now_s = round(now_s + STEP_S, 6)
+    first = min(sent, key=sent.__getitem__)
+    assert trips.answer(first, 14.0) == pytest.approx(14.0)
+    assert PROBE_UNARMED_PERIOD_S * len(PROBE_TAGS) > 14.0 > PROBE_PERIOD_S * len(PROBE_TAGS)
 
 
 def test_the_acceleration_to_the_limit_under_a_long_delay_is_stopped_within_the_stated_bound(
@@ -153,6 +211,32 @@ def test_the_acceleration_to_the_limit_under_a_long_delay_is_stopped_within_the_
 
 # ----------------------------------------------------------------------------- the probes
 
+EVERY_FIELD = 0x1FF   # a stream of Velocity State with all nine fields (the simulated XGV's)
+
+
+def streaming(presence: int = EVERY_FIELD) -> RoundTrips:
+    """Probes towards a vehicle whose Velocity State stream carries ``presence``."""
+    trips = RoundTrips()
+    trips.support(presence)
+    return trips
+
+
+def test_tags_ask_only_for_fields_the_vehicle_streams_and_too_few_mean_no_probes() -> None:
+    """A vehicle answers with the fields asked that it has: tags come from the fields its own
+    stream carries, so an answer is exactly its tag; with fewer than six such fields besides
+    the speed (tags would come round within 3.2 s) it is not probed; before its stream is
+    known, nothing is sent; a stream that changes its fields starts the probes afresh."""
+    assert RoundTrips().probe(0.0) is None
+    no_stamp = streaming(EVERY_FIELD & ~0x100)
+    tags = {no_stamp.probe(i * PROBE_UNARMED_PERIOD_S) for i in range(300)}
+    assert len(tags) == 127 and all(tag & 0x100 == 0 for tag in tags)
+    assert streaming(0x141).probe(0.0) is None            # speed, yaw rate, stamp only
+    trips = streaming()
+    tag = trips.probe(0.0)
+    assert tag is not None
+    trips.support(EVERY_FIELD & ~0x100)
+    assert trips.answer(tag, 0.01) is None                 # forgotten: the stream changed
+
 def test_every_tag_leaves_out_the_speed_and_differs_from_the_stream() -> None:
     """An answer is never taken for a speed sample (bit 0, velocity x, is never asked) and
     never for a streamed report (which asks every field); tags are distinct."""
@@ -163,7 +247,7 @@ def test_every_tag_leaves_out_the_speed_and_differs_from_the_stream() -> None:
 def test_an_answer_is_matched_to_its_own_probe_whatever_was_lost_before_it() -> None:
     """Nine probes in ten lost: each answer that arrives reads its own probe's round trip,
     never the time since the oldest unanswered one."""
-    trips = RoundTrips()
+    trips = streaming()
     now_s, count = 0.0, 0
     while count < 200:
         tag = trips.probe(now_s)
@@ -177,7 +261,7 @@ def test_an_answer_is_matched_to_its_own_probe_whatever_was_lost_before_it() -> 
 
 
 def test_probes_go_out_slowly_until_answered_then_every_period() -> None:
-    trips = RoundTrips()
+    trips = streaming()
     times = [i * STEP_S for i in range(100)]
     sent = [t for t in times if trips.probe(t) is not None]
     assert sent[1] - sent[0] == pytest.approx(PROBE_UNARMED_PERIOD_S)
@@ -189,7 +273,7 @@ def test_probes_go_out_slowly_until_answered_then_every_period() -> None:
 
 
 def test_a_vehicle_that_never_answers_is_unmeasured_never_faulted() -> None:
-    trips = RoundTrips()
+    trips = streaming()
     for i in range(1000):
         trips.probe(i * STEP_S)
     assert trips.round_trip_s(10.0) is None and trips.report()["round_trip_ms"] is None
@@ -199,7 +283,7 @@ def test_a_vehicle_that_never_answers_is_unmeasured_never_faulted() -> None:
 def test_an_answer_to_no_probe_of_ours_is_ignored(case: str) -> None:
     """A tag never sent, an answer delivered twice, or one stamped on our clock before its
     probe went out (impossible): not a round trip."""
-    trips = RoundTrips()
+    trips = streaming()
     tag = trips.probe(1.0)
     assert tag is not None
     if case == "unknown":
@@ -215,7 +299,7 @@ def test_an_answer_to_no_probe_of_ours_is_ignored(case: str) -> None:
 def test_one_late_answer_is_not_a_delay_the_shortest_of_the_window_is() -> None:
     """A host hiccup delays one answer 400 ms among prompt ones: the round trip read stays the
     prompt one throughout; only when every answer of the window is late is the link delayed."""
-    trips = RoundTrips()
+    trips = streaming()
     tag = trips.probe(0.0)
     assert tag is not None
     trips.answer(tag, STEP_S)
@@ -255,6 +339,11 @@ def test_the_client_probes_the_velocity_component_and_takes_only_its_answers() -
     velocity sensor with a tag; its answer from that sensor is a round trip, the same report
     from a stranger or on a service connection is not."""
     client = controlling()
+    stream = ReportVelocityState(velocity_x_mps=1.0, velocity_y_mps=0.0, velocity_z_mps=0.0,
+                                 velocity_rms_mps=0.0, roll_rate_radps=0.0, pitch_rate_radps=0.0,
+                                 yaw_rate_radps=0.0, rate_rms_radps=0.0)   # OpenJAUS: no stamp
+    client.receive(encode_datagram(stream.with_header(source=VSS, destination=ME,
+                                                      service_connection=True)), 9.99)
     probes = [m for m in sent(client, 10.0) if isinstance(m, QueryVelocityState)]
     assert len(probes) == 1 and probes[0].presence_vector in PROBE_TAGS
     assert probes[0].header.destination == VSS

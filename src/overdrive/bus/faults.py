@@ -71,8 +71,9 @@ class ChannelFaults:
 
     def route(self, topic: str, msg: Any) -> Sequence[Any]:
         """What becomes of ``msg`` on ``topic`` now. Windows open together compose as a real
-        link's faults do: a drop or a loss first (each loss window draws), then every delay
-        (added), then the first duplicate or reorder."""
+        link's faults do: a drop or a loss first (each loss window draws, in the order the
+        windows were opened), then the first duplicate or reorder, then every delay (added)
+        on what that gives out."""
         windows = self.windows.get(topic)
         if windows:
             open_now = [w for w in windows if w.open_at(self.now_s)]
@@ -91,14 +92,16 @@ class ChannelFaults:
                 return ()
             if window.kind == "loss" and self._apply(window, topic, msg) == ():
                 return ()
+        rest = [w for w in windows if w.kind in ("duplicate", "reorder")]
+        out = self._apply(rest[0], topic, msg) if rest else (msg,)
         delay_s = sum(w.delay_s for w in windows if w.kind == "delay")
-        if delay_s > 0.0:
+        if delay_s <= 0.0:
+            return out
+        for message in out:   # what the duplicate or the swap gives out, held for the delay
             self.counts["delay"] += 1
             self._order += 1
-            self.held.append((self.now_s + delay_s, self._order, topic, msg))
-            return ()
-        rest = [w for w in windows if w.kind in ("duplicate", "reorder")]
-        return self._apply(rest[0], topic, msg) if rest else (msg,)
+            self.held.append((self.now_s + delay_s, self._order, topic, message))
+        return ()
 
     def _apply(self, window: Window, topic: str, msg: Any) -> Sequence[Any]:
         if window.kind == "loss":

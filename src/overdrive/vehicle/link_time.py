@@ -18,7 +18,8 @@ the source"):
 (a report is received after it was stamped: offset >= stamp - receipt); the largest such bound
 is the fastest delivery seen, so ``excess`` = receipt - stamp + that bound is the age beyond the
 fastest delivery. The fastest delivery itself is bounded by the shortest round trip measured
-(Query Component Control to its Report, ``round_trip``): age <= excess + shortest round trip.
+(a tagged probe's, below, or Query Component Control to its Report, ``round_trip``):
+age <= excess + shortest round trip.
 That upper bound is the report's ``age_s``: it never reads younger than the report is, and it
 sees a delay present from the first report as well as one that comes later.
 
@@ -55,9 +56,16 @@ PROBE_PERIOD_S: Final = 0.05         # a probe every 50 ms once the vehicle answ
                                      # sent no reports); tags come round after 12.75 s
 PROBE_UNARMED_PERIOD_S: Final = 0.1  # until the first answer: tags come round after 25.5 s, so
                                      # a link delayed from the start is measured, not aliased
-PROBE_WINDOW_S: Final = 0.3          # the round trip is the shortest answered in the last this
-                                     # (6 probes: one late answer, a host hiccup, is not a
-                                     # delay; none answered, as often at 50 % loss, is no verdict)
+PROBE_MIN_TAGS: Final = 63           # fewer tags than this (the vehicle sends fewer than six of the
+                                     # report's fields besides the speed): no probes, as tags
+                                     # would come round within 3.2 s
+PROBE_WINDOW_S: Final = 0.5          # the round trip is the lower median of those answered in
+                                     # the last this (10 probes): one late answer, a host
+                                     # hiccup, is not a delay, and one prompt answer does not
+                                     # hide a delay on most commands (the shortest did: 0.5 s
+                                     # on five commands in six read as prompt, 8.82 m/s on an
+                                     # 8 m/s MOVE); none answered, as often at 50 % loss, is no
+                                     # verdict
 MAX_AGE_SAMPLES: Final = 200_000     # ages kept for the summary (over half an hour at 100 Hz)
 SEQUENCE_SPAN: Final = 0x10000       # JAUS header sequence numbers are u16
 
@@ -191,34 +199,48 @@ class RoundTrips:
     """Round trips of tagged probes, each answer matched to its own probe (sans-IO).
 
     ``probe`` says when a probe is due and with which tag; ``answer`` takes the tag of an
-    answer (its presence vector). ``round_trip_s`` is the shortest round trip answered in the
-    last ``PROBE_WINDOW_S``: a delay on either way shows in full, loss not at all. A vehicle
+    answer (its presence vector). ``round_trip_s`` is the lower median of the round trips
+    answered in the last ``PROBE_WINDOW_S``: a delay on either way shows in full, loss not at
+    all. A vehicle
     that never answers leaves it unmeasured (None) and is never faulted for it; unanswered
     probes say nothing (lost, or a cut the client's other checks see)."""
 
     def __init__(self) -> None:
-        self.sent: dict[int, float] = {}      # tag -> when the probe with it went out
+        self.sent_s: dict[int, float] = {}    # tag -> when the probe with it went out
+        self.tags: tuple[int, ...] = ()       # those the vehicle can answer exactly (``support``)
         self.next_tag = 0
         self.next_s = -math.inf
         self.armed = False                    # the vehicle has answered a probe
         self.answers: list[tuple[float, float]] = []   # (arrival, round trip), last window
         self.probes = self.answered = 0
+        self.unmatched = 0                    # answers with the speed in them: not to a tag
         self.round_trips_s: list[float] = []  # for the summary (bounded like the ages)
 
+    def support(self, presence: int) -> None:
+        """The fields the vehicle's own Velocity State stream carries: tags are drawn from
+        them only, since a vehicle answers with the fields asked that it supports (a tag
+        asking for others would come back as another tag). A change starts afresh."""
+        tags = tuple(tag for tag in PROBE_TAGS if tag & ~presence == 0)
+        if tags != self.tags:
+            self.reset()
+            self.tags = tags if len(tags) >= PROBE_MIN_TAGS else ()
+            self.next_tag = 0
+
     def reset(self) -> None:
-        """The link went down: the other end may not answer probes any more."""
-        self.sent.clear()
+        """The link or control went down: probes out may never be answered to us."""
+        self.sent_s.clear()
         self.answers.clear()
         self.armed = False
         self.next_s = -math.inf
 
     def probe(self, now_s: float) -> int | None:
-        """The tag of a probe to send now, or None when none is due."""
-        if now_s < self.next_s - 1e-9:
+        """The tag of a probe to send now, or None when none is due (or the vehicle's stream
+        is not known yet, or carries too few fields for tags)."""
+        if not self.tags or now_s < self.next_s - 1e-9:
             return None
-        tag = PROBE_TAGS[self.next_tag]
-        self.next_tag = (self.next_tag + 1) % len(PROBE_TAGS)
-        self.sent[tag] = now_s
+        tag = self.tags[self.next_tag % len(self.tags)]
+        self.next_tag = (self.next_tag + 1) % len(self.tags)
+        self.sent_s[tag] = now_s
         self.probes += 1
         self.next_s = now_s + (PROBE_PERIOD_S if self.armed else PROBE_UNARMED_PERIOD_S)
         return tag
@@ -226,7 +248,7 @@ class RoundTrips:
     def answer(self, tag: int, now_s: float) -> float | None:
         """The round trip of the probe ``tag`` answers; None for a tag not out (a repeat, a
         stranger's, a reply to another client's query)."""
-        sent_s = self.sent.pop(tag, None)
+        sent_s = self.sent_s.pop(tag, None)
         if sent_s is None or now_s < sent_s:
             return None
         round_trip_s = now_s - sent_s
@@ -234,15 +256,20 @@ class RoundTrips:
             self.armed = True
             self.next_s = min(self.next_s, now_s)
         self.answered += 1
+        self.answers = [a for a in self.answers if now_s - a[0] <= PROBE_WINDOW_S]
         self.answers.append((now_s, round_trip_s))
         if len(self.round_trips_s) < MAX_AGE_SAMPLES:
             self.round_trips_s.append(round_trip_s)
         return round_trip_s
 
     def round_trip_s(self, now_s: float) -> float | None:
-        """The shortest round trip answered in the last ``PROBE_WINDOW_S`` (None: none)."""
+        """The lower median of the round trips answered in the last ``PROBE_WINDOW_S`` (None:
+        none answered)."""
         self.answers = [a for a in self.answers if now_s - a[0] <= PROBE_WINDOW_S]
-        return min((rt for _, rt in self.answers), default=None)
+        if not self.answers:
+            return None
+        trips = sorted(rt for _, rt in self.answers)
+        return trips[(len(trips) - 1) // 2]
 
     def report(self) -> dict[str, Any]:
         """``summary.json`` ``link.probes``: probes sent, answered, round trips in ms."""
@@ -251,7 +278,7 @@ class RoundTrips:
         def ms(value: float) -> float:
             return round(1000.0 * value, 1)
 
-        return {"sent": self.probes, "answered": self.answered,
+        return {"sent": self.probes, "answered": self.answered, "unmatched": self.unmatched,
                 "round_trip_ms": ({"median": ms(statistics.median(trips)),
                                    "p95": ms(trips[min(len(trips) - 1,
                                                        math.ceil(0.95 * len(trips)) - 1)]),

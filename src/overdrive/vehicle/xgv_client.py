@@ -152,6 +152,8 @@ ROUND_TRIP_STOP_S: Final = 2 * AGE_STOP_S   # and an unasked stop (round trips a
                                      # two ages: a delay towards the vehicle only is bounded as
                                      # one both ways; 0.3 s towards it: 8.37 m/s on an 8 m/s
                                      # MOVE in wrench, 0.2 s: 8.22 m/s, measured)
+PROBES_UNMATCHED: Final = 10         # answers to probes with the speed in them (and none to a
+                                     # tag): the vehicle does not answer tags, said once
 AGE_DISTANCE_M: Final = 0.4          # degraded: max speed = this / age, so the stack never sees
                                      # the vehicle further behind than this (8 m/s at 50 ms)
 AGE_HOLD_S: Final = 1.0              # the degraded limit follows the oldest age of the last second
@@ -634,6 +636,11 @@ class XgvClient:
                 if round_trip_s is not None:   # exact: bounds the fastest delivery too
                     self.link_time.round_trip(round_trip_s)
                 return
+            if source == self.wanted[ReportVelocityState.code] and m.velocity_x_mps is not None:
+                if m.header.service_connection:
+                    self.round_trips.support(presence_vector(m))   # the fields it does send
+                elif self.round_trips.probes:
+                    self._unmatched_answer()
             self._velocity_report(m, now_s)
         elif isinstance(m, ReportLocalPose) and not self.plain:
             self.pose = m
@@ -711,6 +718,17 @@ class XgvClient:
         self.velocity = m
         self.fresh = True
 
+    def _unmatched_answer(self) -> None:
+        """An answer to a probe holding fields it did not ask (the speed): the vehicle ignores
+        a query's presence vector, so the round trip cannot be measured. Said once (a fault
+        notice that does not fail the run: the vehicle is as safe as before the probes)."""
+        trips = self.round_trips
+        trips.unmatched += 1
+        if trips.unmatched >= PROBES_UNMATCHED and trips.answered == 0:
+            self._notice("round_trip_unmeasured", f"{trips.unmatched} answers to tagged "
+                         f"probes held fields not asked: the vehicle ignores a query's presence "
+                         f"vector, so a delay towards it is not measured (docs/xgv.md)")
+
     def _unasked_stop(self, key: str, reason: str) -> None:
         """Time the reports cannot account for, or commands the XGV does not execute: a fault,
         and the vehicle's command timeout (brakes, ``VehicleStatus.command_timeout``, so the
@@ -725,6 +743,7 @@ class XgvClient:
         self._notice("control", reason)
         self._latch(reason)
         self.control = False
+        self.round_trips.reset()   # probes out now may never be answered to us
 
     def _latch(self, reason: str) -> None:
         """The vehicle's command timeout, latched until a runwait (``_unasked_stop``)."""
@@ -762,8 +781,8 @@ class XgvClient:
                 self.speed_state = msg
                 if self.timeout_latched and msg.state == "runwait" and not self._too_old():
                     self.timeout_latched = False   # the stack's deliberate restart
-                    for key in ("stall", "report_gap", "report_age", "not_following",
-                                "error_pause"):
+                    for key in ("stall", "report_gap", "report_age", "round_trip",
+                                "not_following", "error_pause"):
                         self._told.discard(key)
         return out
 
@@ -860,7 +879,9 @@ class XgvClient:
             self._unasked_stop("not_following", reason)
 
     def _too_old(self) -> bool:
-        return self.report_age_s is not None and self.report_age_s > AGE_STOP_S
+        """Reports too old, or commands acting too late, for a runwait to release the stop."""
+        return ((self.report_age_s is not None and self.report_age_s > AGE_STOP_S)
+                or (self.round_trip_s is not None and self.round_trip_s > ROUND_TRIP_STOP_S))
 
     def _age_check(self, now_s: float, out: list[tuple[str, Any]]) -> None:
         """The newest report's age and the round trip of the probes (as an age: half of it):
@@ -868,14 +889,16 @@ class XgvClient:
         of ``AGE_DISTANCE_M`` per second of age); beyond ``AGE_STOP_S`` an unasked stop,
         latched (``_unasked_stop``). Probes unanswered say nothing (lost, or a cut the other
         checks see); a probe answered late is a delay."""
-        age_s = self.report_age_s
-        if age_s is None:
-            return
         round_trip_s = self.round_trip_s = (self.round_trips.round_trip_s(now_s) if self.control
                                             else None)
+        if self.report_age_s is None and round_trip_s is None:
+            return   # unstamped reports (OpenJAUS's) and no probe answered: nothing to judge
+        age_s = self.report_age_s or 0.0
         if age_s > AGE_STOP_S:
-            self._unasked_stop("report_age", f"Velocity State {age_s * 1000:.0f} ms old "
-                                             f"(bound {AGE_STOP_S * 1000:.0f} ms)")
+            self._unasked_stop("report_age", f"Velocity State up to {age_s * 1000:.0f} ms old "
+                                             f"(bound {AGE_STOP_S * 1000:.0f} ms; the shortest "
+                                             f"round trip counts in full, as the split of a "
+                                             f"delay between the two ways is unknown)")
         if round_trip_s is not None and round_trip_s > ROUND_TRIP_STOP_S:
             self._unasked_stop("round_trip", f"probes answered {round_trip_s * 1000:.0f} ms "
                                              f"after they were sent (bound "
