@@ -85,7 +85,8 @@ lint: check-env
 # Safety-critical modules (issue 9): 100 % line and branch coverage, enforced: every module of
 # overdrive.safety (command gate, watchdog, motion-sensing plausibility, actuator monitoring), the
 # direction hold (no rollback against the gear), the speed table, the vehicle modes and the run
-# judge; measured with the tests below only (each module's own unit tests among them).
+# judge; measured with the tests below only (each module's own unit tests among them). One worker:
+# with -n 2 it took 64 s against 43 s serially (back to back on a loaded host, 2026-11-26).
 SAFETY_FILES := $(filter-out %/__init__.py,$(wildcard src/overdrive/safety/*.py))
 SAFETY_MODULES := $(subst /,.,$(patsubst src/%.py,%,$(SAFETY_FILES))) \
                   overdrive.servers.speed_table overdrive.servers.direction_hold \
@@ -103,13 +104,19 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
 # Wall-clock and OpenJAUS interop tests (real processes, sockets, fixed ports) run serially
 # after the parallel suite; the interop ones build OpenJAUS once into ~/.cache/overdrive
 # (tests/interop/conftest.py) and skip, saying why, without ../shared/interop/openjaus.
+# Serially on purpose: on a host loaded by others (load 12 on 2 cores, 2026-11-26) two workers
+# here, with launches and xgv-sim runs kept one at a time, failed real-time runs beside a launch
+# (an OpenJAUS drive saw a software pause; a 5 %-loss MOVE faulted; a flood RTT of 55 ms over
+# its 50 ms bound) and saved nothing once every real-time run shared one lane. (Lanes need a
+# scheduler of their own: xdist 3.8's --dist loadgroup groups nothing under pytest 9.2, whose
+# node ids no longer read the item._nodeid it sets.)
 test: check-env lint
 	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock and not interop"
 	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
 	@$(MAKE) --no-print-directory coverage-gate
 
-# The whole-run variant sweeps (tests marked `variants`) in full (`make test` runs one case in four:
-# tests/conftest.py).
+# The whole-run variant sweeps (tests marked `variants`) in full (`make test` runs one case in four
+# and every case marked `variant_edge`: tests/conftest.py).
 test-variants: $(STAMP)
 	OVERDRIVE_ALL_VARIANTS=1 $(PY) -m pytest -n 2 -p no:cacheprovider -m variants
 

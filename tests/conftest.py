@@ -46,6 +46,12 @@ each test marked ``variants``, rotated by the test's name so every position is c
 tests; `make test-variants` (``OVERDRIVE_ALL_VARIANTS=1``) runs them all."""
 
 
+EDGE_MARKER = "variant_edge"
+"""On a case of a ``variants`` test (``pytest.param(..., marks=pytest.mark.variant_edge)``): a case
+at a limit or an edge of the sweep (its smallest and largest value, either side of a threshold,
+a value a defect was found at), run by `make test` too, outside the one-in-four stride."""
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     import os
     import zlib
@@ -57,6 +63,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         name = getattr(item, "originalname", item.name)
         if item.get_closest_marker(VARIANTS_MARKER) is None or not hasattr(item, "callspec"):
+            keep.append(item)
+            continue
+        if item.get_closest_marker(EDGE_MARKER) is not None:
             keep.append(item)
             continue
         key = (str(item.path), name)

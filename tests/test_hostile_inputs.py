@@ -5,6 +5,8 @@ The CLI cases run the real ``overdrive`` in a subprocess. The 5 s bound is asser
 child's CPU time, which other engineers' builds on a shared machine cannot inflate (at a load
 of 8 on 2 cores a 0.4 s run took over 5 s of wall time); a subprocess timeout of
 ``HANG_S`` catches a blocking hang (a FIFO opened for reading) without stalling the suite.
+Neither depends on being alone on the host: `make test` runs them in its parallel phase (no port,
+no timing against the wall clock), not in the serial wall-clock one.
 """
 
 from __future__ import annotations
@@ -161,7 +163,6 @@ def _write(tmp_path: Path, content: bytes) -> Path:
     return path
 
 
-@pytest.mark.wallclock
 @pytest.mark.parametrize("case", [*HOSTILE, *LOADER_EDGES])
 def test_hostile_file_is_exit_2_with_one_line(tmp_path: Path, case: str) -> None:
     content, needles = HOSTILE[case] if case in HOSTILE else LOADER_EDGES[case]
@@ -182,7 +183,6 @@ EVERY_COMMAND_CASES = ("not UTF-8", "alias bomb", "3,000 levels of lists",
                        "duplicate top-level key", "quoted negative mass")
 
 
-@pytest.mark.wallclock
 @pytest.mark.parametrize("case", EVERY_COMMAND_CASES)
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_every_command_reading_a_scenario_rejects_it(tmp_path: Path, command: str,
@@ -204,7 +204,6 @@ JSON_SPECS = {   # the launcher hands nodes the scenario as JSON; a user can too
 }
 
 
-@pytest.mark.wallclock
 @pytest.mark.parametrize("case", sorted(JSON_SPECS))
 def test_node_rejects_a_hostile_json_spec(tmp_path: Path, case: str) -> None:
     content, needles = JSON_SPECS[case]     # 100,000 levels was: RecursionError traceback
@@ -232,7 +231,6 @@ CLICK_CHECKS = {"a regular file"}
 """Cases click's ``file_okay=False`` rejects first, in its own usage-error form (several lines)."""
 
 
-@pytest.mark.wallclock
 @pytest.mark.parametrize("bad", sorted(BAD_OUTS))
 @pytest.mark.parametrize("command", sorted(OUT_COMMANDS))
 def test_out_that_cannot_be_created_is_a_usage_error(tmp_path: Path, command: str,
@@ -250,7 +248,6 @@ def test_out_that_cannot_be_created_is_a_usage_error(tmp_path: Path, command: st
         assert_usage_error(result, f"--out {out}", reason)
 
 
-@pytest.mark.wallclock
 def test_node_report_that_cannot_be_created_is_a_usage_error(tmp_path: Path) -> None:
     """Was: a traceback when the node wrote it at exit, then a hang (the bus never closed)."""
     result = overdrive("node", "move", "--connect", "tcp/127.0.0.1:9", "--duration-s", "0.5",
@@ -259,13 +256,11 @@ def test_node_report_that_cannot_be_created_is_a_usage_error(tmp_path: Path) -> 
                                "not a folder")
 
 
-@pytest.mark.wallclock
 def test_out_with_a_line_break_is_still_one_line(tmp_path: Path) -> None:
     result = overdrive("sim", str(VALID), "--out", "/dev/null/a\nb", cwd=tmp_path)
     assert_usage_error(result, "--out /dev/null/a\\nb: cannot create the folder")
 
 
-@pytest.mark.wallclock
 @pytest.mark.parametrize("special", ["fifo", "/dev/zero", "directory"])
 def test_scenario_path_that_is_not_a_regular_file(tmp_path: Path, special: str) -> None:
     """A FIFO would block the open and /dev/zero never ends: refused, not read."""

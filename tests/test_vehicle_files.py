@@ -492,7 +492,6 @@ CLI_CASES = ("wrong unit: mass in lb", "missing field", "implausible mass",
              "gear role naming no gear", "quoted number")
 
 
-@pytest.mark.wallclock
 @pytest.mark.parametrize("case", CLI_CASES)
 def test_overdrive_sim_refuses_a_bad_vehicle_file_exit_2_one_line(tmp_path: Path, case: str) -> None:
     edit, field, needles = BAD_FILES[case]

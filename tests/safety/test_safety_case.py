@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -24,6 +25,7 @@ def rows() -> list[list[str]]:
     return [[c.strip() for c in ln.strip().strip("|").split("|")] for ln in lines]
 
 
+@functools.cache     # many rows name the same test files: parse each once
 def functions_in(path: Path) -> set[str]:
     tree = ast.parse(path.read_text(encoding="utf-8"))
     return {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}

@@ -90,6 +90,19 @@ class ToolPolicy:
                     "denied_total": sum(self.denied.values())}
 
 
+def stop_on_signals() -> list[int]:
+    """Handle SIGTERM/SIGINT by appending the signal to the returned list: lock-free, as every
+    node's stop flag (``runtime.processes.StopFlag``). The launcher sends the gate SIGTERM twice
+    (to every process group, then to the gate alone); a ``threading.Event`` set here deadlocked
+    when the second arrived inside the first handler's ``set()`` (its lock held, the GIL with
+    Zenoh's callback threads): the gate hung until SIGKILL and wrote no report, so the run's
+    ``access["tool_denied"]`` came out empty."""
+    stopping: list[int] = []
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda signum, _frame: stopping.append(signum))
+    return stopping
+
+
 def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str, access_dir: Path,
                   registry: Registry, report_path: Path | None, password: str,
                   ready: threading.Event | None = None, ready_path: Path | None = None) -> int:
@@ -97,9 +110,7 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     ``ready`` is set, and ``ready_path`` written, once both sessions listen."""
     zenoh.init_log_from_env_or(LOG_FILTER)
     access = RunAccess(access_dir, {})
-    stop = threading.Event()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    stopping = stop_on_signals()
     tool_conf = session_config(listen=[public])
     tool_conf.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(str(access.tool_users)))
     mesh_conf = session_config(listen=[listen], connect=connect, base_file=access.mesh_config,
@@ -147,8 +158,11 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     next_interest_s = started
     try:
         next_tick_s = started
-        while not stop.wait(min(RELAY_POLL_S if relays else INTEREST_POLL_S,   # idle: 10 wakes/s
-                                max(0.0, next_tick_s - time.monotonic()))):
+        while not stopping:
+            time.sleep(min(RELAY_POLL_S if relays else INTEREST_POLL_S,       # idle: 10 wakes/s
+                           max(0.0, next_tick_s - time.monotonic())))
+            if stopping:
+                break
             now_s = time.monotonic()
             if now_s >= next_tick_s:          # liveness: the launcher reports a silent gate
                 ticks.put(registry.encode(NodeTick(process=GATE_USER, seq=seq), GATE_USER, now_s))
@@ -188,4 +202,4 @@ def run_tool_gate(*, public: str, listen: str, connect: list[str], vehicle: str,
     return 0
 
 
-__all__ = ["TOOL_SENDER", "ToolPolicy", "run_tool_gate"]
+__all__ = ["TOOL_SENDER", "ToolPolicy", "run_tool_gate", "stop_on_signals"]
