@@ -203,6 +203,8 @@ class DrivingStatus(Message, frozen=True):
                                    # increase, so a lost DrivingStatus cannot hide one
     started_s: float = 0.0         # this module's first step: a change is a restart (its count
                                    # starts again from 0)
+    last_unasked_stop: str = ""    # the newest unasked stop's cause: "command_silence" or
+                                   # "grip_lost" (a curve that no longer fits the ellipse)
 
 
 # --------------------------------------------------------------------------- speed server (seed 001)

@@ -95,6 +95,8 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     accel_mps2: float = 1.5            # comfort acceleration cap (~0.15 g)
     min_rate_mps2: float = 0.05        # SPSS accel is "Always positive" (seed 004): smallest sent
     max_rate_mps2: float = 9.0         # largest rate sent: the strongest preset brake (9 m/s^2)
+    max_speed_cmd_mps: float = 70.0    # largest speed sent: the speed server's
+                                       # max_request_speed_mps (the scenario file's bound)
     lateral_use_fraction: float = 0.9  # speed cap in a curve uses this share of the lateral axis,
                                        # leaving sqrt(1 - 0.9^2) = 44 % of A' for braking
     overload_decel_fraction: float = 0.3  # outside the ellipse: brake at this share of A'
@@ -271,6 +273,23 @@ def longitudinal_command(goal_mps: float, speed_mps: float, limits: Longitudinal
     rate = overload_decel_mps2 if overload_decel_mps2 is not None else limits.decel_mps2
     rate = min(max(rate, config.min_rate_mps2), config.max_rate_mps2)
     return goal_mps, rate, -rate if goal_mps < speed_mps - band else 0.0
+
+
+def set_speed_message(speed_mps: float, accel_mps2: float, gear: str, state: str, fault: int,
+                      config: DrivingConfig) -> SetSpeed:
+    """The SPSS, valid by construction: the speed server rejects (fault 1003, then its
+    watchdog e-stops) a speed outside ``[0, max_speed_cmd_mps]`` or a rate outside
+    ``(0, 10]``. The rate is clamped to ``[min_rate_mps2, max_rate_mps2]``; a non-finite or
+    negative speed asks for a stop (0) and a non-finite rate then brakes at ``max_rate_mps2``,
+    else changes speed at the gentlest ``min_rate_mps2`` (issue 30: a curve that took the
+    whole ellipse once sent a rate of 0)."""
+    speed = speed_mps if math.isfinite(speed_mps) and speed_mps > 0.0 else 0.0
+    speed = min(speed, config.max_speed_cmd_mps)
+    if math.isfinite(accel_mps2):
+        rate = min(max(accel_mps2, config.min_rate_mps2), config.max_rate_mps2)
+    else:
+        rate = config.max_rate_mps2 if speed == 0.0 else config.min_rate_mps2
+    return SetSpeed(speed_mps=speed, accel_mps2=rate, gear=gear, state=state, fault=fault)
 
 
 def stop_tail_m(speed_mps: float, grade_rad: float, tail_s: float) -> float:
@@ -521,6 +540,7 @@ class DrivingModule:
         self.heard_s: dict[str, float] = {}       # streaming source -> running_s last heard
         self.traffic_lost: dict[str, str] = {}    # streaming source -> why it is held at 0
         self.unasked_stops = 0  # stops made on its own since the start (DrivingStatus)
+        self.last_unasked_stop = ""   # the newest one's cause: command_silence | grip_lost
 
     # ------------------------------------------------------------------ inputs
 
@@ -666,6 +686,7 @@ class DrivingModule:
                    f"at 0 until it sends 0")
             self.traffic_lost[source] = why
             self.unasked_stops += 1
+            self.last_unasked_stop = "command_silence"
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code="command_silence", reason=why)))
 
@@ -802,6 +823,8 @@ class DrivingModule:
         # the normal path can brake with the whole longitudinal axis once it slows out of a curve
         normal_decel = max(limits.decel_mps2, lon_axis + g_along)
         urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
+        if overload and not self.hard_brake:
+            urgent = self._grip_lost(now_s, v, demand, lat_axis, out) or urgent
         if self.hard_brake:
             goal = 0.0
         self.goal_mps = goal
@@ -819,14 +842,14 @@ class DrivingModule:
             speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, spss_limits,
                                                                        overload_rate, cfg)
             if self.hard_brake:
-                # the speed server's full-brake request; in an overloaded curve what the
-                # ellipse leaves (full brake would take the grip the curve needs)
-                rate = limits.decel_mps2 if overload else self.params.max_brake_decel_mps2
+                # the speed server's full-brake request, in a curve too: braking takes
+                # precedence and the tyres share what they give (docs/driving-module.md,
+                # "Grip lost in a curve")
+                rate = self.params.max_brake_decel_mps2
             if not request.drive:
                 speed_cmd = 0.0
-            out.append((Topic.SET_SPEED, SetSpeed(
-                speed_mps=speed_cmd, accel_mps2=rate, gear=request.gear, state=request.state,
-                fault=self.mode.fault)))
+            out.append((Topic.SET_SPEED, set_speed_message(
+                speed_cmd, rate, request.gear, request.state, self.mode.fault, cfg)))
             self.next_spss_s = max(self.next_spss_s + cfg.spss_period_s, now_s)
             if urgent or self.next_spss_s <= now_s + TIME_EPS_S:   # one period after this one
                 self.next_spss_s = now_s + cfg.spss_period_s
@@ -848,7 +871,7 @@ class DrivingModule:
             goal_speed_mps=goal, authorized_m=remaining, speed_limit_mps=speed_limit,
             curvature_1pm=self.curvature_1pm, accel_limit_mps2=limits.accel_mps2,
             decel_limit_mps2=limits.decel_mps2, rejected=self.rejected,
-            unasked_stops=self.unasked_stops,
+            unasked_stops=self.unasked_stops, last_unasked_stop=self.last_unasked_stop,
             started_s=self.first_s if self.first_s is not None else now_s)))
         return out
 
@@ -898,6 +921,36 @@ class DrivingModule:
             kind="hard_brake", source=SOURCE, code="authorization",
             reason=f"{remaining_m:.2f} m authorized at {v:.2f} m/s, a normal stop needs "
                    f"{normal_m:.2f} m: braking with everything")))
+        return True
+
+    def _grip_lost(self, now_s: float, v: float, demand_mps2: float, lat_axis_mps2: float,
+                   out: list) -> bool:
+        """Issue 30: traction control says the ellipse shrank and the curve being driven no
+        longer fits in it (lateral demand beyond its lateral axis) while the vehicle moves.
+        Braking takes precedence: a full-brake stop at once (the tyres share what they give;
+        the curvature is held, neither tightened nor straightened: docs/driving-module.md,
+        "Grip lost in a curve"), counted as a stop the module made on its own and latched
+        like a loss of command traffic: every authorization is held at 0, a streaming source
+        until it sends 0 (the move server discards its command), so nothing moves again
+        until the planner sends a new command that fits the smaller ellipse. True when it
+        starts (send the SPSS now)."""
+        cfg = self.config
+        if v < cfg.hard_brake_min_mps or not self.traction.active(now_s):
+            return False
+        why = (f"grip lost in a curve: lateral demand {demand_mps2:.2f} m/s^2 beyond the "
+               f"ellipse's {lat_axis_mps2:.2f} m/s^2 (traction control active) at {v:.2f} m/s: "
+               f"braking with everything, curvature held; nothing moves until a new command")
+        for source, rev in list(self.authorizations.by_source):
+            self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
+            if source in cfg.streaming_sources:
+                self.traffic_lost[source] = why
+        self.hard_brake = True
+        self.unasked_stops += 1
+        self.last_unasked_stop = "grip_lost"
+        out.append((Topic.NOTICE, Notice(kind="hard_brake", source=SOURCE, code="grip_lost",
+                                         reason=why)))
+        out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE, code="grip_lost",
+                                         reason=why)))
         return True
 
     def _period_ellipses(self, shrink: float) -> tuple[Ellipse, Ellipse, Ellipse]:
@@ -1048,6 +1101,6 @@ class DrivingModule:
 __all__ = [
     "REQUEST_TOWARD", "Authorizations", "DrivingConfig", "DrivingModule", "Request",
     "SpeedLimits", "client_request", "curvature_bounds_1pm", "limit_curvature",
-    "longitudinal_command", "steer_pct_for", "validate_advance", "validate_drive_mode",
+    "longitudinal_command", "set_speed_message", "steer_pct_for", "validate_advance", "validate_drive_mode",
     "validate_max_speed", "validate_steering", "wants_low_gear",
 ]

@@ -923,6 +923,10 @@ class MoveServer:
                              f"{self.config.stall_s:.2f} s: stalled; the driving module stops "
                              f"the vehicle when its stream goes quiet"
                              f"{', and did' if driving_stops else ''})")
+            elif self.driving is not None and self.driving.last_unasked_stop == "grip_lost":
+                code = "grip_lost"
+                what_stop = ("the driving module stopped the vehicle: grip lost in a curve "
+                             "(the curve no longer fits the shrunk ellipse)")
             else:
                 code = "command_silence"
                 what_stop = ("the driving module stopped the vehicle for loss of command "
