@@ -122,6 +122,20 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     normal_stop_reaction_s: float = 0.3  # a stop on the normal path loses this much at speed: up to
                                          # one SPSS period, the reference ease-in, brake build-up
                                          # (issue 17: below it the end is met by hard braking)
+    grip_min_deficit_mps2: float = 0.5  # turning short of the command by this much lateral
+                                       # acceleration while traction control acts is grip lost
+                                       # (issue 30): above the steering lag's share of a
+                                       # jerk-limited ramp (4 m/s^3 x 0.05 s lag = 0.2), below
+                                       # the physical lateral axis at friction 0.1 (0.6 m/s^2)
+    grip_slip_fresh_s: float = 0.05    # traction control reported this recently: sliding now
+                                       # (five of the vehicle's 10 ms status reports)
+    grip_drift_m: float = 0.3          # a slow slide: this far outside the curve (dead-reckoned
+                                       # from the yaw deficit) is grip lost; a fifth of the
+                                       # 1.72 m a 1.78 m wide vehicle has in a 3.5 m lane
+    grip_drift_rad: float = 0.03       # ... or this much heading lost to it (1.7 deg: the
+                                       # steering lag's share of a jerk-limited curve entry,
+                                       # 0.2 / v rad/s, stays below it at 4 m/s for 0.5 s)
+    grip_drift_reset_s: float = 1.0    # the drift estimate restarts after this long without slip
     streaming_sources: tuple[str, ...] = ("move",)   # sources that send their authorization and
                                        # limit every period (the move server: every 10 ms); their
                                        # silence is loss of command traffic. Others (a lidar
@@ -541,6 +555,8 @@ class DrivingModule:
         self.traffic_lost: dict[str, str] = {}    # streaming source -> why it is held at 0
         self.unasked_stops = 0  # stops made on its own since the start (DrivingStatus)
         self.last_unasked_stop = ""   # the newest one's cause: command_silence | grip_lost
+        self._drift_rad = 0.0   # heading lost to sliding in a curve (issue 30, _sliding) ...
+        self._drift_m = 0.0     # ... and the distance outside the curve it made
 
     # ------------------------------------------------------------------ inputs
 
@@ -823,7 +839,7 @@ class DrivingModule:
         # the normal path can brake with the whole longitudinal axis once it slows out of a curve
         normal_decel = max(limits.decel_mps2, lon_axis + g_along)
         urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
-        if overload and not self.hard_brake:
+        if not self.hard_brake and self._sliding(now_s, dt_s, v, reverse):
             urgent = self._grip_lost(now_s, v, demand, lat_axis, out) or urgent
         if self.hard_brake:
             goal = 0.0
@@ -923,11 +939,37 @@ class DrivingModule:
                    f"{normal_m:.2f} m: braking with everything")))
         return True
 
+    def _sliding(self, now_s: float, dt_s: float, v: float, reverse: bool) -> bool:
+        """The tyres slide in the curve: while traction control reports (within
+        ``grip_slip_fresh_s``) the vehicle turns short of the curvature commanded (the IMU's
+        yaw rate against ``v k``) by ``grip_min_deficit_mps2`` of lateral acceleration, or has
+        drifted ``grip_drift_m`` outside the commanded curve since it began to (the deficit
+        integrated twice: a slow slide), or lost ``grip_drift_rad`` of heading to it. Wheel spin alone, on a straight or in a curve still
+        followed, is not; nor is a heading lost beyond ``grip_drift_rad`` (the open-loop
+        curve then runs displaced for good: a slide that the normal path's slowing ended too
+        late). The drift resets after ``grip_drift_reset_s`` without slip."""
+        cfg = self.config
+        yaw = self.yaw_rate_rps
+        k_cmd = self.curvature_1pm
+        quiet_s = now_s - self.traction.last_active_s
+        if quiet_s > cfg.grip_drift_reset_s:
+            self._drift_rad = self._drift_m = 0.0
+        if (yaw is None or v < cfg.hard_brake_min_mps or k_cmd == 0.0
+                or quiet_s > cfg.grip_slip_fresh_s + TIME_EPS_S):
+            return False
+        v_signed = -v if reverse else v
+        k_actual = -yaw / v_signed            # the IMU's sign: heading rate -v k
+        short_1pm = abs(k_cmd) - k_actual * math.copysign(1.0, k_cmd)
+        step_s = min(dt_s, MAX_CONTROL_STEP_S)
+        self._drift_rad += v * short_1pm * step_s
+        self._drift_m += v * self._drift_rad * step_s
+        return (v * v * short_1pm >= cfg.grip_min_deficit_mps2 or self._drift_m >= cfg.grip_drift_m
+                or self._drift_rad >= cfg.grip_drift_rad)
+
     def _grip_lost(self, now_s: float, v: float, demand_mps2: float, lat_axis_mps2: float,
                    out: list) -> bool:
-        """Issue 30: traction control says the ellipse shrank and the curve being driven no
-        longer fits in it (lateral demand beyond its lateral axis) while the vehicle moves.
-        Braking takes precedence: a full-brake stop at once (the tyres share what they give;
+        """Issue 30: the tyres slide in the curve (``_sliding``): the ellipse shrank below what
+        the curve needs, whatever the module believed of it. Braking takes precedence: a full-brake stop at once (the tyres share what they give;
         the curvature is held, neither tightened nor straightened: docs/driving-module.md,
         "Grip lost in a curve"), counted as a stop the module made on its own and latched
         like a loss of command traffic: every authorization is held at 0, a streaming source
@@ -935,11 +977,11 @@ class DrivingModule:
         until the planner sends a new command that fits the smaller ellipse. True when it
         starts (send the SPSS now)."""
         cfg = self.config
-        if v < cfg.hard_brake_min_mps or not self.traction.active(now_s):
-            return False
-        why = (f"grip lost in a curve: lateral demand {demand_mps2:.2f} m/s^2 beyond the "
-               f"ellipse's {lat_axis_mps2:.2f} m/s^2 (traction control active) at {v:.2f} m/s: "
-               f"braking with everything, curvature held; nothing moves until a new command")
+        why = (f"grip lost in a curve: traction control active, the vehicle turns short of the "
+               f"command; lateral demand {demand_mps2:.2f} m/s^2 (ellipse's lateral axis "
+               f"{lat_axis_mps2:.2f} m/s^2) at "
+               f"{v:.2f} m/s: braking with everything, curvature held; nothing moves until a "
+               f"new command")
         for source, rev in list(self.authorizations.by_source):
             self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
             if source in cfg.streaming_sources:
