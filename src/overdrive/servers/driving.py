@@ -9,7 +9,8 @@ gear and the lateral limit of the curve), rate-limits the curvature inside the e
 sequences the speed server (seed 001) as its only client. A streaming source (the move server)
 silent beyond ``command_silence_s`` is loss of command traffic: the vehicle stops as for a
 STOP, the stop is counted (``DrivingStatus.unasked_stops``) and the source held at 0 until it
-sends 0. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
+sends 0. Tyres that slide in a curve (traction control and a yaw-rate deficit, issue 30) stop
+the vehicle the same way, braking first with the curvature held. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
 
 Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
 ``Notice(kind="rejected")`` for every rejected input.
@@ -940,14 +941,13 @@ class DrivingModule:
         return True
 
     def _sliding(self, now_s: float, dt_s: float, v: float, reverse: bool) -> bool:
-        """The tyres slide in the curve: while traction control reports (within
-        ``grip_slip_fresh_s``) the vehicle turns short of the curvature commanded (the IMU's
-        yaw rate against ``v k``) by ``grip_min_deficit_mps2`` of lateral acceleration, or has
-        drifted ``grip_drift_m`` outside the commanded curve since it began to (the deficit
-        integrated twice: a slow slide), or lost ``grip_drift_rad`` of heading to it. Wheel spin alone, on a straight or in a curve still
-        followed, is not; nor is a heading lost beyond ``grip_drift_rad`` (the open-loop
-        curve then runs displaced for good: a slide that the normal path's slowing ended too
-        late). The drift resets after ``grip_drift_reset_s`` without slip."""
+        """The tyres slide in the curve (issue 30). While traction control reports (within
+        ``grip_slip_fresh_s``), the vehicle turns short of the commanded curvature (the IMU's
+        yaw rate against ``v k``) by ``grip_min_deficit_mps2`` of lateral acceleration, or the
+        deficit integrated since the slide began reaches ``grip_drift_rad`` of heading or
+        ``grip_drift_m`` outside the curve (a slow slide: the open-loop curve would run
+        displaced for good). Wheel spin alone, on a straight or in a curve still followed, is
+        not a slide. The integral restarts after ``grip_drift_reset_s`` without slip."""
         cfg = self.config
         yaw = self.yaw_rate_rps
         k_cmd = self.curvature_1pm
@@ -969,9 +969,10 @@ class DrivingModule:
     def _grip_lost(self, now_s: float, v: float, demand_mps2: float, lat_axis_mps2: float,
                    out: list) -> bool:
         """Issue 30: the tyres slide in the curve (``_sliding``): the ellipse shrank below what
-        the curve needs, whatever the module believed of it. Braking takes precedence: a full-brake stop at once (the tyres share what they give;
-        the curvature is held, neither tightened nor straightened: docs/driving-module.md,
-        "Grip lost in a curve"), counted as a stop the module made on its own and latched
+        the curve needs, whatever the module believed of it. Braking takes precedence: a
+        full-brake stop at once (the tyres share what they give; the curvature is held,
+        neither tightened nor straightened: docs/driving-module.md, "Grip lost in a curve"),
+        counted as a stop the module made on its own and latched
         like a loss of command traffic: every authorization is held at 0, a streaming source
         until it sends 0 (the move server discards its command), so nothing moves again
         until the planner sends a new command that fits the smaller ellipse. True when it
@@ -1143,6 +1144,6 @@ class DrivingModule:
 __all__ = [
     "REQUEST_TOWARD", "Authorizations", "DrivingConfig", "DrivingModule", "Request",
     "SpeedLimits", "client_request", "curvature_bounds_1pm", "limit_curvature",
-    "longitudinal_command", "set_speed_message", "steer_pct_for", "validate_advance", "validate_drive_mode",
-    "validate_max_speed", "validate_steering", "wants_low_gear",
+    "longitudinal_command", "set_speed_message", "steer_pct_for", "validate_advance",
+    "validate_drive_mode", "validate_max_speed", "validate_steering", "wants_low_gear",
 ]
