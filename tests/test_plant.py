@@ -189,3 +189,34 @@ def test_contact_when_obstacle_inside_footprint(preset: VehicleParams) -> None:
     assert plant.contact()
     plant.world = World(obstacles=((front + 0.01, 0.0),))
     assert not plant.contact()
+
+
+@pytest.mark.parametrize("friction", [0.1, 0.25, 0.5, 0.8])
+@pytest.mark.parametrize("brake_pct", [20.0, 60.0, 100.0])
+@pytest.mark.parametrize("steer_pct", [-60.0, 30.0, 80.0])
+def test_combined_slip_saturates_along_the_demand(preset: VehicleParams, friction: float,
+                                                  brake_pct: float, steer_pct: float) -> None:
+    """Braking in a curve beyond grip (issue 30): the tyre force lies on the friction ellipse
+    (X = mu N, Y = N skid-pad mu / 0.9) in the direction of the demand (brush model at full
+    sliding), so braking still slows the vehicle; inside the ellipse nothing is scaled."""
+    params = ideal(preset)
+    speed = 12.0
+    plant = moving_plant(params, speed, World(friction=friction))
+    plant.brake = brake_pct / 100.0
+    road_wheel = steer_pct / 100.0 * params.max_steer_rad
+    plant.road_wheel_rad = plant._steer_rate_limited_rad = road_wheel
+    geom_k = math.tan(road_wheel) / params.wheelbase_m
+    dt = 1e-4
+    plant.step(dt, 0.0, brake_pct, steer_pct, plant.gear, True)
+    lon_demand = brake_pct / 100.0 * params.max_brake_decel_mps2       # per unit mass
+    lat_demand = speed * speed * geom_k
+    x_axis = friction * G_MPS2
+    y_axis = params.skidpad_lat_g * G_MPS2 * min(friction / 0.9, 1.0)
+    usage = math.hypot(lon_demand / x_axis, lat_demand / y_axis)
+    scale = min(1.0, 1.0 / usage)
+    assert plant.curvature_1pm == pytest.approx(geom_k * scale, rel=1e-9)
+    assert -plant.accel_mps2 == pytest.approx(lon_demand * scale, rel=1e-3)
+    assert plant.slip == (usage > 1.0)
+    if usage > 1.0:
+        got = math.hypot(-plant.accel_mps2 / x_axis, speed * speed * plant.curvature_1pm / y_axis)
+        assert got == pytest.approx(1.0, rel=1e-3), "on the ellipse, not inside nor beyond"

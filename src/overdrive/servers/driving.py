@@ -9,7 +9,8 @@ gear and the lateral limit of the curve), rate-limits the curvature inside the e
 sequences the speed server (seed 001) as its only client. A streaming source (the move server)
 silent beyond ``command_silence_s`` is loss of command traffic: the vehicle stops as for a
 STOP, the stop is counted (``DrivingStatus.unasked_stops``) and the source held at 0 until it
-sends 0. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
+sends 0. Tyres that slide in a curve (traction control and a yaw-rate deficit, issue 30) stop
+the vehicle the same way, braking first with the curvature held. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
 
 Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
 ``Notice(kind="rejected")`` for every rejected input.
@@ -95,6 +96,8 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     accel_mps2: float = 1.5            # comfort acceleration cap (~0.15 g)
     min_rate_mps2: float = 0.05        # SPSS accel is "Always positive" (seed 004): smallest sent
     max_rate_mps2: float = 9.0         # largest rate sent: the strongest preset brake (9 m/s^2)
+    max_speed_cmd_mps: float = 70.0    # largest speed sent: the speed server's
+                                       # max_request_speed_mps (the scenario file's bound)
     lateral_use_fraction: float = 0.9  # speed cap in a curve uses this share of the lateral axis,
                                        # leaving sqrt(1 - 0.9^2) = 44 % of A' for braking
     overload_decel_fraction: float = 0.3  # outside the ellipse: brake at this share of A'
@@ -120,6 +123,20 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     normal_stop_reaction_s: float = 0.3  # a stop on the normal path loses this much at speed: up to
                                          # one SPSS period, the reference ease-in, brake build-up
                                          # (issue 17: below it the end is met by hard braking)
+    grip_min_deficit_mps2: float = 0.5  # turning short of the command by this much lateral
+                                       # acceleration while traction control acts is grip lost
+                                       # (issue 30): above the steering lag's share of a
+                                       # jerk-limited ramp (4 m/s^3 x 0.05 s lag = 0.2), below
+                                       # the physical lateral axis at friction 0.1 (0.6 m/s^2)
+    grip_slip_fresh_s: float = 0.05    # traction control reported this recently: sliding now
+                                       # (five of the vehicle's 10 ms status reports)
+    grip_drift_m: float = 0.3          # a slow slide: this far outside the curve (dead-reckoned
+                                       # from the yaw deficit) is grip lost; a fifth of the
+                                       # 1.72 m a 1.78 m wide vehicle has in a 3.5 m lane
+    grip_drift_rad: float = 0.03       # ... or this much heading lost to it (1.7 deg: the
+                                       # steering lag's share of a jerk-limited curve entry,
+                                       # 0.2 / v rad/s, stays below it at 4 m/s for 0.5 s)
+    grip_drift_reset_s: float = 1.0    # the drift estimate restarts after this long without slip
     streaming_sources: tuple[str, ...] = ("move",)   # sources that send their authorization and
                                        # limit every period (the move server: every 10 ms); their
                                        # silence is loss of command traffic. Others (a lidar
@@ -271,6 +288,23 @@ def longitudinal_command(goal_mps: float, speed_mps: float, limits: Longitudinal
     rate = overload_decel_mps2 if overload_decel_mps2 is not None else limits.decel_mps2
     rate = min(max(rate, config.min_rate_mps2), config.max_rate_mps2)
     return goal_mps, rate, -rate if goal_mps < speed_mps - band else 0.0
+
+
+def set_speed_message(speed_mps: float, accel_mps2: float, gear: str, state: str, fault: int,
+                      config: DrivingConfig) -> SetSpeed:
+    """The SPSS, valid by construction: the speed server rejects (fault 1003, then its
+    watchdog e-stops) a speed outside ``[0, max_speed_cmd_mps]`` or a rate outside
+    ``(0, 10]``. The rate is clamped to ``[min_rate_mps2, max_rate_mps2]``; a non-finite or
+    negative speed asks for a stop (0) and a non-finite rate then brakes at ``max_rate_mps2``,
+    else changes speed at the gentlest ``min_rate_mps2`` (issue 30: a curve that took the
+    whole ellipse once sent a rate of 0)."""
+    speed = speed_mps if math.isfinite(speed_mps) and speed_mps > 0.0 else 0.0
+    speed = min(speed, config.max_speed_cmd_mps)
+    if math.isfinite(accel_mps2):
+        rate = min(max(accel_mps2, config.min_rate_mps2), config.max_rate_mps2)
+    else:
+        rate = config.max_rate_mps2 if speed == 0.0 else config.min_rate_mps2
+    return SetSpeed(speed_mps=speed, accel_mps2=rate, gear=gear, state=state, fault=fault)
 
 
 def stop_tail_m(speed_mps: float, grade_rad: float, tail_s: float) -> float:
@@ -521,6 +555,9 @@ class DrivingModule:
         self.heard_s: dict[str, float] = {}       # streaming source -> running_s last heard
         self.traffic_lost: dict[str, str] = {}    # streaming source -> why it is held at 0
         self.unasked_stops = 0  # stops made on its own since the start (DrivingStatus)
+        self.last_unasked_stop = ""   # the newest one's cause: command_silence | grip_lost
+        self._drift_rad = 0.0   # heading lost to sliding in a curve (issue 30, _sliding) ...
+        self._drift_m = 0.0     # ... and the distance outside the curve it made
 
     # ------------------------------------------------------------------ inputs
 
@@ -666,6 +703,7 @@ class DrivingModule:
                    f"at 0 until it sends 0")
             self.traffic_lost[source] = why
             self.unasked_stops += 1
+            self.last_unasked_stop = "command_silence"
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code="command_silence", reason=why)))
 
@@ -802,6 +840,8 @@ class DrivingModule:
         # the normal path can brake with the whole longitudinal axis once it slows out of a curve
         normal_decel = max(limits.decel_mps2, lon_axis + g_along)
         urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
+        if not self.hard_brake and self._sliding(now_s, dt_s, v, reverse):
+            urgent = self._grip_lost(now_s, v, demand, lat_axis, out) or urgent
         if self.hard_brake:
             goal = 0.0
         self.goal_mps = goal
@@ -819,14 +859,14 @@ class DrivingModule:
             speed_cmd, rate, self.a_signed_mps2 = longitudinal_command(goal, v, spss_limits,
                                                                        overload_rate, cfg)
             if self.hard_brake:
-                # the speed server's full-brake request; in an overloaded curve what the
-                # ellipse leaves (full brake would take the grip the curve needs)
-                rate = limits.decel_mps2 if overload else self.params.max_brake_decel_mps2
+                # the speed server's full-brake request, in a curve too: braking takes
+                # precedence and the tyres share what they give (docs/driving-module.md,
+                # "Grip lost in a curve")
+                rate = self.params.max_brake_decel_mps2
             if not request.drive:
                 speed_cmd = 0.0
-            out.append((Topic.SET_SPEED, SetSpeed(
-                speed_mps=speed_cmd, accel_mps2=rate, gear=request.gear, state=request.state,
-                fault=self.mode.fault)))
+            out.append((Topic.SET_SPEED, set_speed_message(
+                speed_cmd, rate, request.gear, request.state, self.mode.fault, cfg)))
             self.next_spss_s = max(self.next_spss_s + cfg.spss_period_s, now_s)
             if urgent or self.next_spss_s <= now_s + TIME_EPS_S:   # one period after this one
                 self.next_spss_s = now_s + cfg.spss_period_s
@@ -848,7 +888,7 @@ class DrivingModule:
             goal_speed_mps=goal, authorized_m=remaining, speed_limit_mps=speed_limit,
             curvature_1pm=self.curvature_1pm, accel_limit_mps2=limits.accel_mps2,
             decel_limit_mps2=limits.decel_mps2, rejected=self.rejected,
-            unasked_stops=self.unasked_stops,
+            unasked_stops=self.unasked_stops, last_unasked_stop=self.last_unasked_stop,
             started_s=self.first_s if self.first_s is not None else now_s)))
         return out
 
@@ -898,6 +938,62 @@ class DrivingModule:
             kind="hard_brake", source=SOURCE, code="authorization",
             reason=f"{remaining_m:.2f} m authorized at {v:.2f} m/s, a normal stop needs "
                    f"{normal_m:.2f} m: braking with everything")))
+        return True
+
+    def _sliding(self, now_s: float, dt_s: float, v: float, reverse: bool) -> bool:
+        """The tyres slide in the curve (issue 30). While traction control reports (within
+        ``grip_slip_fresh_s``), the vehicle turns short of the commanded curvature (the IMU's
+        yaw rate against ``v k``) by ``grip_min_deficit_mps2`` of lateral acceleration, or the
+        deficit integrated since the slide began reaches ``grip_drift_rad`` of heading or
+        ``grip_drift_m`` outside the curve (a slow slide: the open-loop curve would run
+        displaced for good). Wheel spin alone, on a straight or in a curve still followed, is
+        not a slide. The integral restarts after ``grip_drift_reset_s`` without slip."""
+        cfg = self.config
+        yaw = self.yaw_rate_rps
+        k_cmd = self.curvature_1pm
+        quiet_s = now_s - self.traction.last_active_s
+        if quiet_s > cfg.grip_drift_reset_s:
+            self._drift_rad = self._drift_m = 0.0
+        if (yaw is None or v < cfg.hard_brake_min_mps or k_cmd == 0.0
+                or quiet_s > cfg.grip_slip_fresh_s + TIME_EPS_S):
+            return False
+        v_signed = -v if reverse else v
+        k_actual = -yaw / v_signed            # the IMU's sign: heading rate -v k
+        short_1pm = abs(k_cmd) - k_actual * math.copysign(1.0, k_cmd)
+        step_s = min(dt_s, MAX_CONTROL_STEP_S)
+        self._drift_rad += v * short_1pm * step_s
+        self._drift_m += v * self._drift_rad * step_s
+        return (v * v * short_1pm >= cfg.grip_min_deficit_mps2 or self._drift_m >= cfg.grip_drift_m
+                or self._drift_rad >= cfg.grip_drift_rad)
+
+    def _grip_lost(self, now_s: float, v: float, demand_mps2: float, lat_axis_mps2: float,
+                   out: list) -> bool:
+        """Issue 30: the tyres slide in the curve (``_sliding``): the ellipse shrank below what
+        the curve needs, whatever the module believed of it. Braking takes precedence: a
+        full-brake stop at once (the tyres share what they give; the curvature is held,
+        neither tightened nor straightened: docs/driving-module.md, "Grip lost in a curve"),
+        counted as a stop the module made on its own and latched
+        like a loss of command traffic: every authorization is held at 0, a streaming source
+        until it sends 0 (the move server discards its command), so nothing moves again
+        until the planner sends a new command that fits the smaller ellipse. True when it
+        starts (send the SPSS now)."""
+        cfg = self.config
+        why = (f"grip lost in a curve: traction control active, the vehicle turns short of the "
+               f"command; lateral demand {demand_mps2:.2f} m/s^2 (ellipse's lateral axis "
+               f"{lat_axis_mps2:.2f} m/s^2) at "
+               f"{v:.2f} m/s: braking with everything, curvature held; nothing moves until a "
+               f"new command")
+        for source, rev in list(self.authorizations.by_source):
+            self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
+            if source in cfg.streaming_sources:
+                self.traffic_lost[source] = why
+        self.hard_brake = True
+        self.unasked_stops += 1
+        self.last_unasked_stop = "grip_lost"
+        out.append((Topic.NOTICE, Notice(kind="hard_brake", source=SOURCE, code="grip_lost",
+                                         reason=why)))
+        out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE, code="grip_lost",
+                                         reason=why)))
         return True
 
     def _period_ellipses(self, shrink: float) -> tuple[Ellipse, Ellipse, Ellipse]:
@@ -1048,6 +1144,6 @@ class DrivingModule:
 __all__ = [
     "REQUEST_TOWARD", "Authorizations", "DrivingConfig", "DrivingModule", "Request",
     "SpeedLimits", "client_request", "curvature_bounds_1pm", "limit_curvature",
-    "longitudinal_command", "steer_pct_for", "validate_advance", "validate_drive_mode",
-    "validate_max_speed", "validate_steering", "wants_low_gear",
+    "longitudinal_command", "set_speed_message", "steer_pct_for", "validate_advance",
+    "validate_drive_mode", "validate_max_speed", "validate_steering", "wants_low_gear",
 ]

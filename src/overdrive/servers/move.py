@@ -258,7 +258,8 @@ class MoveServer:
         self.speed_stop_cause = ""   # its name (the interruption's code), since last step
         self.speed_seen: tuple[float, int] | None = None   # (started_s, unasked_stops) last seen
         self.driving_seen: tuple[float, int] | None = None   # the same of the driving module
-        self.driving_stops = 0     # its unasked stops (loss of command traffic) since last step
+        self.driving_stops = 0     # its unasked stops (loss of command traffic, grip lost) since
+                                   # last step
         self.stall_gap_s = 0.0     # this server's own step gap beyond stall_s, this step
         self.hold_clear_since_accept = False   # a non-failed direction hold seen since accepted
         self.driving: DrivingStatus | None = None
@@ -923,6 +924,10 @@ class MoveServer:
                              f"{self.config.stall_s:.2f} s: stalled; the driving module stops "
                              f"the vehicle when its stream goes quiet"
                              f"{', and did' if driving_stops else ''})")
+            elif self.driving is not None and self.driving.last_unasked_stop == "grip_lost":
+                code = "grip_lost"
+                what_stop = ("the driving module stopped the vehicle: grip lost in a curve "
+                             "(the curve no longer fits the shrunk ellipse)")
             else:
                 code = "command_silence"
                 what_stop = ("the driving module stopped the vehicle for loss of command "

@@ -11,12 +11,19 @@ Model (SI units, x forward along the heading):
   brake holds a stopped vehicle with ``m * a_brake_max`` but does not brake a moving one.
 - Rolling resistance ``C_rr * m * g * cos(pitch)``; drag ``0.5 * rho * CdA * v * |v|``;
   grade ``-m * g * sin(pitch)``.
-- Friction circle: tyre force ``sqrt(F_x^2 + F_y^2) <= mu * m * g * cos(pitch)`` (drive force
-  only on the driven share of the weight). Demand beyond it slips: the force is capped, wheel
-  speed departs from ground speed, and the traction-control signal rises.
+- Combined slip, friction ellipse: ``(F_x / X)^2 + (F_y / Y)^2 <= 1`` with ``X = mu N``
+  (``N = m g cos(pitch)``; drive force also only up to the driven share of it) and
+  ``Y = N * skidpad_lat_g * min(mu / DRY_MU, 1)`` (the skid-pad figure, scaled by friction:
+  the judge's physical ellipse). A demand beyond it saturates along its own direction: both
+  components are divided by ``sqrt((F_x/X)^2 + (F_y/Y)^2)``. This is the brush tyre model at full sliding (Pacejka, Tyre and Vehicle
+  Dynamics, 3rd ed. 2012, sec. 3.3; Svendenius and Gaefvert, Lund TFRT-7606, 2003, sec. 2.2):
+  the sliding force is ``mu Fz`` opposing the sliding velocity, collinear with the slip vector,
+  which the unsaturated demand stands in for. Braking in a curve beyond grip therefore costs
+  cornering force and the vehicle runs wide (understeer); neither direction has priority.
+  Saturated, the wheel speed departs from ground speed and the traction-control signal rises.
 - Kinematic bicycle: curvature ``k = tan(delta) / L`` (positive right), heading rate ``-v * k``.
-  The steering actuator has a rate limit and a first-order lag. Lateral acceleration
-  ``v^2 * k`` is capped by friction (understeer).
+  The steering actuator has a rate limit and a first-order lag. The curvature driven is the
+  lateral force the circle leaves over ``m v^2`` (understeer).
 - Actuators: first-order lags on throttle and brake (preset time constants).
 - Engine: cranking takes ``crank_time_s`` on a rising edge of the engine request; the first
   ``start_failures`` attempts fail, later ones fail with ``start_failure_prob``. A new attempt
@@ -35,6 +42,7 @@ import msgspec
 
 from overdrive.dynamics.vehicle_params import (
     AIR_DENSITY_KGPM3,
+    DRY_MU,
     G_MPS2,
     Gear,
     GearTable,
@@ -216,22 +224,17 @@ class Plant:
         pitch = self.pitch_rad
         normal_n = m * G_MPS2 * math.cos(pitch)
         mu_n = self.world.friction * normal_n
+        # lateral semi-axis: the vehicle's skid-pad figure (measured on dry pavement, DRY_MU)
+        # scaled by the friction, never above it: the judge's physical ellipse
+        lat_max_n = normal_n * p.skidpad_lat_g * min(self.world.friction / DRY_MU, 1.0)
         v = self.speed_mps
-        lat_demand_mps2 = v * v * geom_k
-        lat_cap_mps2 = mu_n / m
-        slip = False
-        if abs(lat_demand_mps2) > lat_cap_mps2:
-            slip = True
-            k = math.copysign(lat_cap_mps2 / (v * v), geom_k)
-        else:
-            k = geom_k
-        lat_n = m * v * v * abs(k)
-        long_cap_n = math.sqrt(max(mu_n * mu_n - lat_n * lat_n, 0.0))
+        lat_demand_n = m * v * v * geom_k   # + right, what the steered wheels ask of the tyres
 
         gear = self._gear(self.gear)
         direction = gear.direction
         drive_n = 0.0
         spin_mps = 0.0
+        slip = False
         if self.engine == "running" and self.shift_target is None and direction != 0:
             along = v * direction
             available = min(gear.max_force_n, p.max_power_w / max(abs(v), 0.5))
@@ -239,7 +242,7 @@ class Plant:
             if along > 0.9 * top:
                 available *= max(0.0, (top - along) / (0.1 * top))
             drive_n = direction * self.throttle * faults.throttle_effectiveness * available
-            driven_cap_n = long_cap_n * (1.0 if gear.all_wheel else p.driven_weight_fraction)
+            driven_cap_n = mu_n * (1.0 if gear.all_wheel else p.driven_weight_fraction)
             if abs(drive_n) > driven_cap_n:
                 slip = True
                 spin_mps = direction * min((abs(drive_n) - driven_cap_n) / m, 5.0)
@@ -251,9 +254,20 @@ class Plant:
             # brake (with its lag and faults) decelerates
             brake_n = max(brake_n, m * p.max_brake_decel_mps2)
         abs_active = False
-        if brake_n > long_cap_n:
-            abs_active = abs(v) >= STOPPED_MPS
-            brake_n = long_cap_n
+        k = geom_k
+        if abs(v) < STOPPED_MPS:
+            brake_n = min(brake_n, mu_n)   # holding: no lateral demand at rest
+        else:
+            # combined slip: the tyre force the wheels ask for, saturated along its direction
+            lon_demand_n = drive_n - math.copysign(brake_n, v)
+            usage = math.hypot(lon_demand_n / mu_n, lat_demand_n / lat_max_n)
+            if usage > 1.0:
+                scale = 1.0 / usage
+                slip = slip or lat_demand_n != 0.0
+                abs_active = brake_n > 0.0
+                k = geom_k * scale
+                drive_n *= scale
+                brake_n *= scale
         grade_n = -m * G_MPS2 * math.sin(pitch)
         roll_n = p.rolling_resistance * normal_n
 
