@@ -20,7 +20,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from overdrive.bus.link_faults import LinkFaults, LinkFaultSpec, parse_cut
+from overdrive.bus.link_faults import DIRECTIONS, LinkFaults, LinkFaultSpec, parse_cut
 from overdrive.cli.main import main
 from overdrive.runtime.link_proxy import LinkProxy
 
@@ -70,7 +70,23 @@ def test_delay_and_jitter_bound_the_delivery_and_jitter_reorders() -> None:
     assert any(b < a for a, b in itertools.pairwise(got) if a and b)   # reordered
 
 
+@pytest.mark.parametrize("way", ["to-vehicle", "from-vehicle"])
+def test_a_fault_one_way_leaves_the_other_way_clean(way: str) -> None:
+    """``--way``: loss, delay, jitter and cuts act on that direction only; the other passes at
+    once and untouched (a link delayed or cut one way)."""
+    spec = LinkFaultSpec(loss=0.5, delay_s=0.3, jitter_s=0.1, cuts=((1.0, 1.0),), seed=3, way=way)
+    faulted, clean = (LinkFaults(spec, way),
+                      LinkFaults(spec, next(d for d in DIRECTIONS if d != way)))
+    times = [0.01 * i for i in range(400)]
+    assert [clean.decide(t) for t in times] == times
+    decided = [faulted.decide(t) for t in times]
+    kept = [(t, d) for t, d in zip(times, decided, strict=True) if d is not None]
+    assert 0 < len(kept) < len(times) and all(d >= t + 0.3 for t, d in kept)
+    assert all(d is None for t, d in zip(times, decided, strict=True) if 1.0 <= t < 2.0)
+
+
 @pytest.mark.parametrize("field", [
+    {"way": "sideways"}, {"way": ""},
     {"loss": float("nan")}, {"loss": 1.5}, {"loss": -0.1}, {"delay_s": float("inf")},
     {"delay_s": -1.0}, {"jitter_s": 61.0}, {"cuts": ((float("nan"), 1.0),)},
     {"cuts": ((1.0, 0.0),)}, {"start_s": float("nan")}, {"seed": -1}])
@@ -87,7 +103,8 @@ def test_a_malformed_cut_is_refused(text: str) -> None:
 
 @pytest.mark.parametrize("args", [
     ["--loss", "nan"], ["--loss", "1.5"], ["--delay-ms", "-5"], ["--jitter-ms", "inf"],
-    ["--cut", "3"], ["--cut", "1:-2"], ["--seed", "-1"], ["--start-s", "nan"]])
+    ["--cut", "3"], ["--cut", "1:-2"], ["--seed", "-1"], ["--start-s", "nan"],
+    ["--way", "up"]])
 def test_bad_flags_exit_2_with_a_reason(args: list[str]) -> None:
     result = CliRunner().invoke(main, ["link-proxy", "--listen", "127.0.0.1:0", "--to",
                                        "127.0.0.1:9", "--duration-s", "0.1", *args])
@@ -223,3 +240,23 @@ def test_over_udp_a_cut_in_heavy_loss_stops_latched_without_overrun(tmp_path: Pa
                    and r["speed_mps"] < 0.01)
     after = [r["x_m"] for r in truth[stopped:]]
     assert max(after) - after[0] < 0.05 and after[0] < MOVE_M - 20.0
+
+
+@pytest.mark.wallclock
+def test_over_udp_a_delay_towards_the_vehicle_only_is_measured_and_stops_latched(
+        tmp_path: Path) -> None:
+    """300 ms towards the vehicle only from 5 s (``--way to-vehicle``; the reports stay
+    fresh): the drive's round-trip probes read it, the stop latches (``xgv_round_trip``,
+    ``interrupted``), and by ground truth the vehicle never moves again, never overruns or
+    speeds."""
+    summary, truth = drive_through_proxy(tmp_path, ["--delay-ms", "300", "--start-s", "5",
+                                                    "--way", "to-vehicle"], duration_s=10.0)
+    assert ("fault", "xgv_round_trip") in kinds(summary, "fault")
+    assert ("interrupted", "command_timeout") in kinds(summary, "interrupted")
+    assert summary["link"]["probes"]["round_trip_ms"]["max"] >= 300.0
+    assert max(r["x_m"] for r in truth) <= MOVE_M
+    assert max(r["speed_mps"] for r in truth) <= LIMIT_MPS + SPEED_TOLERANCE_MPS
+    stopped = next(i for i, r in enumerate(truth) if r["scenario_s"] > 5.0
+                   and r["speed_mps"] < 0.01)
+    after = [r["x_m"] for r in truth[stopped:]]
+    assert max(after) - after[0] < 0.05

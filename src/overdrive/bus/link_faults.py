@@ -8,7 +8,8 @@ decisions (``tests/xgv/test_link_proxy.py``). Per datagram, in this order: insid
 (``at_s <= t < at_s + for_s``) it is lost; before ``start_s`` it passes untouched (the link
 comes up clean, then degrades); else lost with probability ``loss``; else delivered at
 ``t + delay_s + U(0, jitter_s)``. Jitter larger than the gap between datagrams
-reorders them, as a real network does.
+reorders them, as a real network does. ``way`` puts every fault on one direction only (a
+link delayed or cut one way: an asymmetric route, a half-duplex radio); the other passes.
 """
 
 from __future__ import annotations
@@ -22,10 +23,11 @@ import msgspec
 MAX_DELAY_S: Final = 60.0          # a delay or jitter beyond this is a cut, not a delay
 MAX_CUT_S: Final = 86_400.0        # one day: the longest run anyone tests
 DIRECTIONS: Final = ("to-vehicle", "from-vehicle")
+WAYS: Final = ("both", *DIRECTIONS)   # which way the faults act (``LinkFaultSpec.way``)
 
 
 class LinkFaultSpec(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
-    """What to do to every datagram, in both directions (validated on construction)."""
+    """What to do to every datagram, both ways or one (validated on construction)."""
 
     loss: float = 0.0                                  # probability each datagram is lost
     delay_s: float = 0.0                               # added to every datagram kept
@@ -33,8 +35,11 @@ class LinkFaultSpec(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fi
     cuts: tuple[tuple[float, float], ...] = ()         # (at_s, for_s): nothing passes
     start_s: float = 0.0                               # loss, delay, jitter from here on
     seed: int = 0
+    way: str = "both"                                  # or one direction: the other passes
 
     def __post_init__(self) -> None:
+        if self.way not in WAYS:
+            raise ValueError(f"way: one of {WAYS}, got {self.way!r}")
         if not 0.0 <= self.loss <= 1.0:   # also refuses NaN
             raise ValueError(f"loss: a fraction in [0, 1], got {self.loss!r}")
         for name in ("delay_s", "jitter_s"):
@@ -70,6 +75,9 @@ class LinkFaults:
         if not math.isfinite(t_s):
             raise ValueError(f"arrival time: finite, got {t_s!r}")
         spec = self.spec
+        if spec.way not in ("both", self.direction):   # a fault one way: this way is clean
+            self.counts["forwarded"] += 1
+            return t_s
         if self.in_cut(t_s):
             self.counts["cut"] += 1
             return None
@@ -98,4 +106,4 @@ def parse_cut(text: str) -> tuple[float, float]:
     return at_s, for_s
 
 
-__all__ = ["DIRECTIONS", "LinkFaultSpec", "LinkFaults", "parse_cut"]
+__all__ = ["DIRECTIONS", "WAYS", "LinkFaultSpec", "LinkFaults", "parse_cut"]

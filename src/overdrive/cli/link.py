@@ -9,7 +9,7 @@ import signal
 
 import click
 
-from overdrive.bus.link_faults import MAX_DELAY_S, LinkFaultSpec, parse_cut
+from overdrive.bus.link_faults import MAX_DELAY_S, WAYS, LinkFaultSpec, parse_cut
 from overdrive.runtime.link_proxy import LinkProxy
 from overdrive.runtime.udp import parse_address
 
@@ -49,16 +49,19 @@ def _finite(ctx: click.Context, param: click.Parameter, value: float | None) -> 
                                      "the client's first datagram (the link comes up clean).")
 @click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=0, show_default=True,
               help="Seed of the loss and jitter draws: the same seed, the same decisions.")
+@click.option("--way", type=click.Choice(WAYS), default="both", show_default=True,
+              help="Every fault on this direction only (to-vehicle: the client's datagrams; "
+                   "from-vehicle: the vehicle's); the other passes clean.")
 @click.option("--duration-s", type=click.FloatRange(0.0, 86_400.0, min_open=True),
               callback=_finite, help="Stop after this long (default: run until interrupted).")
 def link_proxy(listen: str, to: str, upstream: str, loss: float, delay_ms: float,
-               jitter_ms: float, cuts: tuple[str, ...], start_s: float, seed: int,
+               jitter_ms: float, cuts: tuple[str, ...], start_s: float, seed: int, way: str,
                duration_s: float | None) -> None:
     """A UDP fault proxy between a JAUS client and its vehicle: loss, delay, jitter, cuts."""
     try:
         spec = LinkFaultSpec(loss=loss, delay_s=delay_ms / 1e3, jitter_s=jitter_ms / 1e3,
                              cuts=tuple(parse_cut(c) for c in cuts), start_s=start_s,
-                             seed=seed)
+                             seed=seed, way=way)
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
     listen_at, target, bind = (_address(listen, "--listen", bind=True),
