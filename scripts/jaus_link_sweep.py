@@ -4,7 +4,8 @@ loss (5-50 % in steps of 5 %, seeds 0-4, from 0.4 s), a cut (0.1-2.0 s in steps 
 4 s and 6.5 s) or a delay towards the vehicle only (0.05-0.5 s in steps of 0.05 s, 1 s and 2 s,
 at 4 s while accelerating and at 8 s at cruise), judged from the simulated XGV's own state. One
 line per run, then a summary; exit 1 if any run was violated (for ``delay``: by anything but
-the two link faults it is meant to raise, ``xgv_round_trip`` and ``xgv_link_degraded``).
+the link faults it is meant to raise: ``xgv_round_trip``, ``xgv_link_degraded``, and from
+0.5 s the XGV's own timeouts, ``xgv_error_pause`` and ``xgv_not_following``).
 
     .venv/bin/python scripts/jaus_link_sweep.py loss|cut|delay [--control wrench|motion-profile]
 """
@@ -60,7 +61,9 @@ def main() -> int:
         runs.append((name, got))
         print(name, got, flush=True)
     if args.kind == "delay":   # the faults it is meant to cause fail the run: not violations
-        meant = ("link fault xgv_round_trip", "link fault xgv_link_degraded")
+        meant = ("link fault xgv_round_trip", "link fault xgv_link_degraded",
+                 "link fault xgv_error_pause",    # from 0.5 s: the XGV's own wrench timeout
+                 "link fault xgv_not_following")  # and its motion lapsing (400 ms)
         for _, got in runs:
             got["violations"] = [v for v in got["violations"] if not v.startswith(meant)]
     violated = [name for name, got in runs if got["violations"]]

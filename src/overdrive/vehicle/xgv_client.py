@@ -919,6 +919,9 @@ class XgvClient:
             self.degraded_age_s = 0.0
         out.extend((Topic.NOTICE, n) for n in self.notices)
         self.notices.clear()
+        if self.timeout_latched:
+            return   # stopping: the stop supersedes a lower limit (one the vehicle could not
+                     # meet while its commands still act late: a false judge alarm)
         if self.degraded_age_s > 0.0:
             self.limit_sent = True
             limit = AGE_DISTANCE_M / self.degraded_age_s
