@@ -57,7 +57,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.actuators import SteeringMonitor
-from overdrive.safety.plausibility import MotionPlausibility
+from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.gear_hints import GearHints
 from overdrive.servers.move_arrivals import sample_times
@@ -484,7 +484,7 @@ class DrivingModule:
         self.history = OdometerHistory()  # odometer by time: authorizations count from their issue
         # issue 16: motion sensing cross-checked; progress is signed and conservative, so each
         # direction has its own odometer (forward in ``history``, reverse here)
-        self.motion = MotionPlausibility(SOURCE)
+        self.motion = MotionPlausibility(SOURCE, plausibility_config(params))
         self.history_reverse = OdometerHistory()
         self._arrived: list[AdvanceAuthorization] = []   # this period's, applied after the sensors
         self._newest_issue: dict[tuple, float] = {}   # (kind, source[, reverse]) -> newest issued_s

@@ -66,7 +66,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
-from overdrive.safety.plausibility import MotionPlausibility
+from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
 from overdrive.servers.dispatch import TypeDispatch
@@ -191,7 +191,7 @@ class SpeedServer:
         self.last_imu_s: float | None = None
         self.speed_live = False
         self.sensor_lost = False
-        self.motion = MotionPlausibility(SOURCE)   # issue 16: never close on an untrusted speed
+        self.motion = MotionPlausibility(SOURCE, plausibility_config(params))   # issue 16: never close on an untrusted speed
         # faults and e-stop
         self.client_fault = 0
         self.estop_reason = ""
@@ -353,6 +353,11 @@ class SpeedServer:
         wheel_fresh = self._fresh(self.last_wheel_s, now_s) and self.motion.trusted("wheel_speed")
         if self.gps is not None and gps_fresh:
             self.speed_mps = self.gps.speed_mps
+            if (self.motion.prefer_higher and self.wheel_mps is not None and wheel_fresh
+                    and abs(self.wheel_mps) > abs(self.speed_mps)):
+                # issue 30: the sources disagree and the wheels are not slipping: the higher
+                # reading (a GPS/INS under-reading by a drift is outvoted)
+                self.speed_mps = self.wheel_mps
         elif self.wheel_mps is not None and wheel_fresh:
             self.speed_mps = self.wheel_mps
         self.speed_live = gps_fresh or wheel_fresh
