@@ -10,9 +10,10 @@ vehicle's width but off the centre line as soon as it leaves the cone (issue 16)
   drops to float), until the vehicle has passed it, or a later trusted reading sees through
   its place (the point lies well inside the cone, nearer than what the radar now reports).
   "Passed" needs the pose AND the conservative progress since the last sighting (more than the
-  target's distance then). The frame drifts only as odometry and gyro do (a 1 % odometry
-  error is 0.1 m over the 10 m a target is remembered outside the cone); an over-reading
-  odometer moves the vehicle towards its targets (it stops short);
+  target's distance then). The frame drifts only as odometry and gyro do (over the ~6 m a
+  target 0.6 m off the centre line is remembered outside the cone: a 1 % odometry error is
+  0.06 m; a 0.01 rad/s gyro bias at 2 m/s turns it 0.03 rad, 0.18 m); an over-reading odometer
+  moves the vehicle towards its targets (it stops short);
 - judges the **corridor** along the predicted path: the arc of the commanded and of the
   measured (steering) curvature, as wide as the vehicle plus ``corridor_margin_m`` on each
   side (plus what the front corner swings out in a curve), and gives the path distance from
