@@ -18,10 +18,11 @@ Checks:
 
 Issue 30 (sensors that drift or step; thresholds from the vehicle file):
 
-- **speed disagreement**: while the GPS/INS and wheel speeds differ by more than
-  ``speed_agree_mps`` and the wheels are not slipping, the higher reading is the speed (a
-  GPS/INS under-reading by a drift is outvoted at once, so it can make the vehicle drive at most
-  ``speed_agree_mps`` plus the noise faster than the wheels say). A disagreement beyond
+- **speed disagreement**: while the GPS/INS speed reads lower than the wheels' by more than
+  ``speed_agree_mps`` (their difference filtered over ``disagree_filter_s``) and the wheels are
+  not slipping, the wheels' (the higher) reading is the speed (a GPS/INS under-reading by a
+  drift is outvoted, so it can make the vehicle drive at most ``speed_agree_mps`` plus the
+  noise faster than the wheels say; a GPS/INS reading higher is used as before). A disagreement beyond
   ``speed_disagree_fault_mps`` + ``speed_disagree_fault_frac`` x speed for
   ``speed_disagree_confirm_s`` is fault 1107 (the stated bound on how far a drift goes before it
   is caught); the reason names the source the IMU backs. No source is dropped for it: a scale
@@ -127,6 +128,9 @@ class PlausibilityConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True
     position_step_m: float = 0.25
     position_step_sigmas: float = 6.0
     heading_step_rad: float = 0.05
+    disagree_filter_s: float = 0.2   # the speed difference's filter: 20 periods take a
+                                     # 0.5 m/s (1 sigma) GPS speed noise to 0.08 m/s, inside
+                                     # the agreement band; a drift is seen 0.2 s later
     step_timing_s: float = 0.02   # a pose's time stamp jitters by one report period (the XGV's
                                   # 20 ms reports): its speed x this is slack on a step
 
@@ -201,8 +205,10 @@ class MotionPlausibility:
         # (time, IMU integral) of the last standstill_window_s, for the zero-velocity update
         self._imu_history: deque[tuple[float, float]] = deque()
         # issue 30: speed disagreement, pose steps, solution status
-        self.prefer_higher = False        # the sources disagree, the wheels are not slipping
+        self.gps_reads_low = False        # GPS/INS below the wheels, the wheels not slipping
         self.wheel_slipping = False
+        self._d_mps = 0.0                 # GPS/INS minus wheel speed, filtered
+        self._cross_s: float | None = None
         # (IMU integral, wheel speed, GPS/INS speed) at the last agreement
         self._agree_at: tuple[float, float, float] | None = None
         self._disagree_since_s: float | None = None
@@ -440,21 +446,27 @@ class MotionPlausibility:
         vg, vw = self._now_speed(gps), self._now_speed(wheel)
         if (vg is None or vw is None or not gps.live(now_s, cfg.timeout_s)
                 or not wheel.live(now_s, cfg.timeout_s) or not wheel.trusted):
-            self.prefer_higher = self.wheel_slipping = False
-            self._agree_at, self._disagree_since_s = None, None
+            self.gps_reads_low = self.wheel_slipping = False
+            self._agree_at, self._disagree_since_s, self._cross_s = None, None, None
             return []
-        d = vg - vw
-        if abs(d) <= cfg.speed_agree_mps:
-            self._agree_at = (self.imu_integral_mps, vw, vg)
+        d_raw = vg - vw
+        dt = 0.0 if self._cross_s is None else max(now_s - self._cross_s, 0.0)
+        gain = 1.0 if self._cross_s is None else 1.0 - math.exp(-dt / cfg.disagree_filter_s)
+        self._cross_s = now_s
+        self._d_mps += (d_raw - self._d_mps) * gain
+        d = self._d_mps
+        if abs(d_raw) <= cfg.speed_agree_mps:   # the last reading in agreement (unfiltered:
+            self._agree_at = (self.imu_integral_mps, vw, vg)   # the filter lags a slip's onset)
         if self._agree_at is None:   # never agreed: nothing tells which is off (as before)
-            self.prefer_higher, self.wheel_slipping = False, True
+            self.gps_reads_low, self.wheel_slipping = False, True
             return []
         imu_ok = imu.trusted and imu.live(now_s, cfg.timeout_s)
         wheel_dv = vw - self._agree_at[1]
         imu_dv = self.imu_integral_mps - self._agree_at[0]
         self.wheel_slipping = abs(d) > cfg.speed_agree_mps and (
             not imu_ok or abs(wheel_dv - imu_dv) > 0.5 * abs(d))
-        self.prefer_higher = abs(d) > cfg.speed_agree_mps and not self.wheel_slipping
+        forward = 1.0 if vw >= 0.0 else -1.0
+        self.gps_reads_low = forward * d < -cfg.speed_agree_mps and not self.wheel_slipping
         bound = cfg.speed_disagree_fault_mps + cfg.speed_disagree_fault_frac * max(abs(vg), abs(vw))
         if abs(d) <= bound or self.wheel_slipping:
             self._disagree_since_s = None
@@ -476,14 +488,14 @@ class MotionPlausibility:
                               f"s; the IMU backs {backs}; the higher reading is used")]
 
     def _select_speed(self, now_s: float) -> float | None:
-        """The GPS/INS speed, else the wheels'; the higher of the two while they disagree and
-        the wheels are not slipping (issue 30)."""
+        """The GPS/INS speed, else the wheels'; the wheels' while the GPS/INS reads lower than
+        they do beyond the agreement band and they are not slipping (issue 30)."""
         live = [self._now_speed(t) for t in (self.gps_track, self.wheel_track)
                 if t.trusted and t.live(now_s, self.config.timeout_s)]
         if not live:
             return None
-        if self.prefer_higher and len(live) == 2:
-            return max(live, key=lambda v: abs(v or 0.0))
+        if self.gps_reads_low and len(live) == 2:
+            return live[1]
         return live[0]
 
     def _update_progress(self, now_s: float) -> None:

@@ -353,10 +353,9 @@ class SpeedServer:
         wheel_fresh = self._fresh(self.last_wheel_s, now_s) and self.motion.trusted("wheel_speed")
         if self.gps is not None and gps_fresh:
             self.speed_mps = self.gps.speed_mps
-            if (self.motion.prefer_higher and self.wheel_mps is not None and wheel_fresh
-                    and abs(self.wheel_mps) > abs(self.speed_mps)):
-                # issue 30: the sources disagree and the wheels are not slipping: the higher
-                # reading (a GPS/INS under-reading by a drift is outvoted)
+            if self.motion.gps_reads_low and self.wheel_mps is not None and wheel_fresh:
+                # issue 30: the GPS/INS reads below the wheels, which are not slipping: the
+                # higher reading (a GPS/INS under-reading by a drift is outvoted)
                 self.speed_mps = self.wheel_mps
         elif self.wheel_mps is not None and wheel_fresh:
             self.speed_mps = self.wheel_mps
