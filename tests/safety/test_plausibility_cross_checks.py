@@ -10,7 +10,7 @@ import random
 import pytest
 
 from overdrive.dynamics.vehicle_params import G_MPS2
-from overdrive.messages import GpsIns, Imu, WheelSpeed
+from overdrive.messages import GpsIns, Imu, Topic, WheelSpeed
 from overdrive.safety.plausibility import (
     MotionPlausibility,
     PlausibilityConfig,
@@ -18,6 +18,9 @@ from overdrive.safety.plausibility import (
     plausibility_config,
 )
 from overdrive.scenario.vehicles import PRESETS
+from overdrive.servers.driving import DrivingModule
+from overdrive.servers.move import MoveServer
+from overdrive.servers.speed import SpeedServer
 from tests.conftest import PRESET_NAMES
 
 DT = 0.01
@@ -199,3 +202,21 @@ def test_a_receiver_without_a_solution_is_untrusted_until_it_has_one() -> None:
     assert not d.node.trusted("gps_ins")
     d.cruise(0.1, solution="rtk_fixed")
     assert d.node.trusted("gps_ins")
+
+
+# --------------------------------------------------------------------------- input validation
+
+@pytest.mark.parametrize("sigma", [math.nan, math.inf, -math.inf, -0.1])
+@pytest.mark.parametrize("server", ["move", "driving", "speed"])
+def test_a_gps_ins_with_a_bad_position_sigma_is_rejected_by_every_server(sigma: float,
+                                                                         server: str) -> None:
+    """A reported sigma that is no finite number >= 0 rejects the reading with a notice (it
+    would widen or disable the position-step bound)."""
+    params = PRESETS["escape-hybrid"]
+    node = {"move": MoveServer, "driving": DrivingModule, "speed": SpeedServer}[server](params)
+    bad = GpsIns(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=0.0, pitch_rad=0.0, roll_rad=0.0,
+                 odometer_m=0.0, position_sigma_m=sigma)
+    out = node.step(0.0, [(Topic.GPS_INS, bad)])
+    rejected = [m for t, m in out if t == Topic.NOTICE and m.kind == "rejected"]
+    assert rejected and "gps_ins" in rejected[0].reason
+    assert node.motion.gps_track.last is None, "never handed to the cross-checks"

@@ -66,6 +66,7 @@ from collections import deque
 
 import msgspec
 
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import GpsIns, Imu, Notice, WheelSpeed
 
@@ -242,6 +243,8 @@ class MotionPlausibility:
     def _check_pose(self, now_s: float, msg: GpsIns) -> None:
         """Position and heading steps against the speed and the gyro; solution changes."""
         cfg = self.config
+        if not (finite(msg.x_m, msg.y_m, msg.heading_rad) and valid_sigma(msg.position_sigma_m)):
+            return   # the server rejects such a reading; a bench that hands it in is ignored
         if msg.solution != self.solution and self._pose_at is not None:
             self._pending.append(Notice(kind="sensor", source=self.source, code="gps_solution",
                                         reason=f"gps_ins solution {self.solution} -> "

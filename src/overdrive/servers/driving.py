@@ -38,7 +38,7 @@ from overdrive.dynamics.ellipse import (
     load_axes_mps2,
     tyre_longitudinal_mps2,
 )
-from overdrive.dynamics.validation import finite
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     AdvanceAuthorization,
@@ -204,6 +204,8 @@ def validate_gps(msg: Any) -> str:
     if not finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.pitch_rad, msg.roll_rad,
                   msg.odometer_m):
         return "gps_ins: pose, speed, attitude or odometer not finite"
+    if not valid_sigma(msg.position_sigma_m):
+        return "gps_ins: position_sigma_m not a finite number >= 0"
     return ""
 
 

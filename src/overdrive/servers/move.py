@@ -62,7 +62,7 @@ from overdrive.dynamics.ellipse import (
     lateral_speed_limit_mps,
     max_safe_speed_mps,
 )
-from overdrive.dynamics.validation import finite
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     AdvanceAuthorization,
@@ -348,7 +348,7 @@ class MoveServer:
 
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
         if finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.odometer_m, msg.pitch_rad,
-                  msg.roll_rad):
+                  msg.roll_rad) and valid_sigma(msg.position_sigma_m):
             self.gps, self.gps_s = msg, now_s
             self.motion.gps(now_s, msg)
         else:

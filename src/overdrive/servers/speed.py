@@ -51,7 +51,7 @@ from overdrive.dynamics.speed_control import (
     LongitudinalGains,
     gains_for,
 )
-from overdrive.dynamics.validation import finite
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, Gear, GearTable, VehicleParams
 from overdrive.messages import (
     GpsIns,
@@ -310,8 +310,10 @@ class SpeedServer:
             self.last_status_rx_s, self.status_new = now_s, True
 
     def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad, msg.odometer_m),
-                              "gps_ins: speed, pitch or odometer not finite", out):
+        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad, msg.odometer_m)
+                              and valid_sigma(msg.position_sigma_m),
+                              "gps_ins: speed, pitch, odometer or position sigma not finite",
+                              out):
             self.gps, self.last_gps_s = msg, now_s
             self.motion.gps(now_s, msg)
 
