@@ -8,13 +8,15 @@ the true pose at the step): the remembered obstacle alone stands between the veh
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from overdrive.run.sim import run_scenario
+from overdrive.run.sweep import sample_run
 from overdrive.safety.plausibility import PlausibilityFault
-from overdrive.scenario.schema import parse_scenario
+from overdrive.scenario.schema import load_scenario, parse_scenario, read_scenario_data
 from overdrive.scenario.vehicles import PRESETS
 from tests.conftest import PRESET_NAMES
 
@@ -229,3 +231,19 @@ def test_a_receiver_without_a_solution_is_untrusted_and_a_change_is_reported(pre
     assert codes(result, PlausibilityFault.GPS_NO_SOLUTION)
     assert codes(result, PlausibilityFault.GPS_POSITION_STEP) == [], \
         "float-grade noise under its reported sigma is no step"
+
+
+SWEEP = Path(__file__).resolve().parents[2] / "scenarios" / "sweep-move.yaml"
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("run_index", [0, 1, 2, 3, 4, 5])
+def test_sampled_runs_of_the_move_sweep_raise_no_sensor_fault(preset: str, run_index: int) -> None:
+    """The Monte Carlo sweep's runs (friction, grade, obstacle and event times sampled; a GPS
+    dropout, a brake fade, a SafeStop pause, a radar e-stop): no issue-30 fault."""
+    data = read_scenario_data(SWEEP)
+    spec = load_scenario(SWEEP).spec
+    sampled, _ = sample_run(dict(data, vehicle=preset), run_index, spec.seed, spec.sweep)
+    result = run_scenario(parse_scenario(sampled), None, plot=False, record_mcap=False)
+    assert result.summary["violations"] == []
+    assert [e for e in result.summary["events"] if e.get("code") in ISSUE_30_FAULTS] == []
