@@ -243,6 +243,9 @@ def test_sampled_runs_of_the_move_sweep_raise_no_sensor_fault(preset: str, run_i
     dropout, a brake fade, a SafeStop pause, a radar e-stop): no issue-30 fault."""
     data = read_scenario_data(SWEEP)
     spec = load_scenario(SWEEP).spec
+    # the file's expectations are the escape's (the slower ranger may not finish in 45 s, on
+    # main too): the judge's invariants and the faults are what count here
+    data = {k: v for k, v in data.items() if k != "expect"}
     sampled, _ = sample_run(dict(data, vehicle=preset), run_index, spec.seed, spec.sweep)
     result = run_scenario(parse_scenario(sampled), None, plot=False, record_mcap=False)
     assert result.summary["violations"] == []
