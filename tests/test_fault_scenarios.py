@@ -11,7 +11,7 @@ from overdrive.scenario.schema import load_scenario
 
 FAULTS = sorted((Path(__file__).resolve().parent.parent / "scenarios" / "faults").glob("*.yaml"))
 KINDS = {"drop", "delay", "duplicate", "reorder", "sensor", "actuator", "engine_stall", "safestop",
-         "manual_override", "door"}
+         "manual_override", "door", "sensor_error", "gps_status"}
 
 
 def test_every_fault_kind_has_a_scenario() -> None:

@@ -130,3 +130,32 @@ def test_shipped_scenarios_are_valid() -> None:
     assert paths
     for path in paths:
         load_scenario(path)
+
+
+@pytest.mark.parametrize(("body", "field", "reason"), [
+    ({"quantity": "gps_speed", "bias": float("nan")}, "sensor_error.bias", "finite"),
+    ({"quantity": "gps_speed", "drift_per_s": float("inf")}, "sensor_error.drift_per_s", "finite"),
+    ({"quantity": "gps_speed", "drift_per_s": 10.5}, "sensor_error.drift_per_s", "<= 10"),
+    ({"quantity": "gps_speed", "scale": 0.4}, "sensor_error.scale", ">= 0.5"),
+    ({"quantity": "gps_speed", "colour": 1}, "sensor_error.colour", "unknown field"),
+    ({"quantity": "odometer"}, "sensor_error.quantity", "invalid enum value"),
+    ({"bias": 1.0}, "sensor_error.quantity", "required field missing"),
+    ({"quantity": "gps_position", "bias": 1.0, "scale": 1.1}, "sensor_error.scale",
+     "no scale factor")])
+def test_a_bad_sensor_error_is_rejected_naming_the_field(body: dict, field: str,
+                                                        reason: str) -> None:
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(scenario_dict(events=[{"at_s": 1, "sensor_error": body}]))
+    assert info.value.field == f"events[0].{field}"
+    assert reason in info.value.reason
+
+
+@pytest.mark.parametrize(("body", "field"), [
+    ({"solution": "rtk_float", "position_sigma_m": float("nan")}, "gps_status.position_sigma_m"),
+    ({"solution": "rtk_float", "position_sigma_m": -0.1}, "gps_status.position_sigma_m"),
+    ({"solution": "float", "position_sigma_m": 0.3}, "gps_status.solution"),
+    ({"solution": "rtk_float", "position_sigma_m": 0.3, "age_s": 1}, "gps_status.age_s")])
+def test_a_bad_gps_status_is_rejected_naming_the_field(body: dict, field: str) -> None:
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(scenario_dict(events=[{"at_s": 1, "gps_status": body}]))
+    assert info.value.field == f"events[0].{field}"

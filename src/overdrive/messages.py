@@ -19,7 +19,8 @@ from typing import Literal
 
 import msgspec
 
-SCHEMA_VERSION = 2   # 2: issue 16 (Radar.bearing_rad and seq, SpeedState.direction_hold)
+SCHEMA_VERSION = 3   # 2: issue 16 (Radar.bearing_rad and seq, SpeedState.direction_hold);
+                     # 3: issue 30 (GpsIns.solution and position_sigma_m)
 """Bumped on any incompatible change to a message below; carried by serialized bus frames."""
 
 
@@ -314,7 +315,17 @@ class WheelSpeed(Message, frozen=True):
     speed_mps: float               # signed by gear direction; differs from ground speed when slipping
 
 
+GpsSolution = Literal["rtk_fixed", "rtk_float", "dgps", "single", "dead_reckoning", "none",
+                      "unknown"]
+"""The receiver's own solution status (NMEA GGA quality 4/5/2/1/6/0; "unknown": not reported)."""
+
+GPS_SOLUTIONS: tuple[str, ...] = GpsSolution.__args__   # type: ignore[attr-defined]
+
+
 class GpsIns(Message, frozen=True):
+    """GPS/INS pose and motion; ``solution`` and ``position_sigma_m`` are the receiver's own
+    status and horizontal covariance (1 sigma), checked by ``safety.plausibility`` (issue 30)."""
+
     x_m: float
     y_m: float
     heading_rad: float
@@ -322,6 +333,8 @@ class GpsIns(Message, frozen=True):
     pitch_rad: float               # nose up positive
     roll_rad: float                # right side down positive
     odometer_m: float              # path length from the integrated pose, forward and reverse
+    solution: GpsSolution = "unknown"
+    position_sigma_m: float | None = None   # horizontal position 1 sigma; None: not reported
 
 
 class Imu(Message, frozen=True):

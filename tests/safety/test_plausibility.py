@@ -158,7 +158,9 @@ def test_odometer_jump(extra_m: float, flagged: bool) -> None:
         bench.step(gps(2.0 + bench.n(), odo, x=odo), WheelSpeed(speed_mps=2.0 + bench.n()),
                    imu(bench.n(0.05)))
     assert (not bench.node.gps_track.trusted) is flagged
-    assert bench.codes() == ([PlausibilityFault.GPS_ODOMETER_JUMP] if flagged else [])
+    # the position jumps with the odometer: a step too (issue 30), reported, not distrusted
+    odometer_codes = [c for c in bench.codes() if c != PlausibilityFault.GPS_POSITION_STEP]
+    assert odometer_codes == ([PlausibilityFault.GPS_ODOMETER_JUMP] if flagged else [])
 
 
 def test_an_untrusted_source_is_trusted_again_after_recover_s_of_plausible_readings() -> None:
@@ -269,7 +271,7 @@ def test_a_step_without_a_direction_keeps_the_engaged_one(engaged: int, gps_mps:
     bench = Bench()
     odo = 0.0
     bench.step(gps(gps_mps, odo), direction=-engaged)
-    bench.step(gps(gps_mps, odo, x=1.0), direction=engaged)
+    bench.step(gps(gps_mps, odo, x=1e-4), direction=engaged)
     for _ in range(200):
         odo += gps_mps * DT
         bench.step(gps(gps_mps, odo, x=odo), direction=0)

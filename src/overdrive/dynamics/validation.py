@@ -24,3 +24,8 @@ def finite(*values: Any) -> bool:
         if not math.isfinite(v):
             return False
     return True
+
+
+def valid_sigma(value: Any) -> bool:
+    """A reported 1-sigma that is absent (None) or a finite number >= 0 (``GpsIns``)."""
+    return value is None or (finite(value) and value >= 0.0)

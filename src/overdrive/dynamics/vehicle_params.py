@@ -79,6 +79,15 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     gps_noise_m: float = 0.02           # RTK-grade GPS/INS position noise (1 sigma)
     speed_noise_mps: float = 0.02
     accel_noise_mps2: float = 0.05
+    # sensor cross-checks (issue 30; safety.plausibility)
+    speed_agree_mps: float = 0.1        # GPS/INS and wheel speeds agree within this; beyond it
+                                        # (the wheels not slipping) the higher one is used
+    speed_disagree_fault_mps: float = 0.3   # a disagreement beyond this (plus the fraction) ...
+    speed_disagree_fault_frac: float = 0.03  # ... of the speed, for ...
+    speed_disagree_confirm_s: float = 0.5   # ... this long, is a fault
+    position_step_m: float = 0.25       # a GPS/INS position step beyond what the speed explains
+    position_step_sigmas: float = 6.0   # ... and this many of the receiver's sigmas, is a fault
+    heading_step_rad: float = 0.05      # a GPS/INS heading step beyond what the gyro explains
 
     @property
     def front_overhang_m(self) -> float:
@@ -167,6 +176,14 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "gps_noise_m": (0.0, 50.0, "1 sigma: RTK ~0.02 m, standalone GPS ~5 m"),
     "speed_noise_mps": (0.0, 5.0, "1 sigma of the wheel-speed reading"),
     "accel_noise_mps2": (0.0, 5.0, "1 sigma of the accelerometer reading"),
+    "speed_agree_mps": (0.01, 5.0, "a few sigma of two speed readings' difference"),
+    "speed_disagree_fault_mps": (0.05, 10.0, "above the agreement band, below a speed limit's "
+                                             "worth"),
+    "speed_disagree_fault_frac": (0.0, 0.3, "tyre rolling radius: ~3 % with wear and pressure"),
+    "speed_disagree_confirm_s": (0.01, 10.0, "a few control periods to a few seconds"),
+    "position_step_m": (0.01, 100.0, "RTK ~0.02 m noise to standalone GPS ~5 m"),
+    "position_step_sigmas": (3.0, 100.0, "a step is at least 3 sigma of the reported noise"),
+    "heading_step_rad": (0.001, 3.2, "INS heading noise ~0.002-0.02 rad"),
 }
 """Physically plausible range of every number a scenario may override (docs/scenarios.md)."""
 
@@ -191,8 +208,15 @@ GEAR_ROLES: dict[str, tuple[int, str]] = {
 }
 """The roles a vehicle's gears play and the direction each must have."""
 
-OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob"})
-"""Simulation knobs (failed crank attempts), 0 unless stated: every other field is required."""
+SENSOR_CHECKS: tuple[str, ...] = (
+    "speed_agree_mps", "speed_disagree_fault_mps", "speed_disagree_fault_frac",
+    "speed_disagree_confirm_s", "position_step_m", "position_step_sigmas", "heading_step_rad")
+"""The sensor cross-checks' thresholds (issue 30): the shipped files state them; a file written
+before them gets the defaults above (RTK-grade GPS/INS, 0.02 m/s speed noise)."""
+
+OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob", *SENSOR_CHECKS})
+"""Simulation knobs (failed crank attempts, 0 unless stated) and the sensor cross-checks'
+thresholds (defaults unless stated): every other field is required."""
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 _FIELD_TYPES: dict[str, Any] = {f.name: f.type for f in msgspec.structs.fields(VehicleParams)}

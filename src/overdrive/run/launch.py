@@ -94,6 +94,8 @@ from overdrive.vehicle.sim_node import (
     COMMAND_TIMEOUT_S,
     WORLD_TOPIC,
     EngineStall,
+    GpsStatus,
+    SensorError,
     SensorFault,
     VehicleSim,
 )
@@ -146,7 +148,7 @@ def stack_registry() -> Registry:
     """Stack messages plus the simulator's control types and the launch clock."""
     registry = Registry()
     registry.register(World, WORLD_TOPIC)
-    for cls in (ActuatorFaults, SensorFault, EngineStall):
+    for cls in (ActuatorFaults, SensorFault, SensorError, GpsStatus, EngineStall):
         registry.register(cls)
     registry.register(LaunchClock, CLOCK_TOPIC)
     registry.register(ClockReport, CLOCK_REPORT_TOPIC)

@@ -16,6 +16,30 @@ Checks:
 - **jumping**: an odometer that runs backwards, or advances more than the speed allows over the
   time since the previous reading (``jump_m`` of slack), is untrusted.
 
+Issue 30 (sensors that drift or step; thresholds from the vehicle file):
+
+- **speed disagreement**: while the GPS/INS speed reads lower than the wheels' by more than
+  ``speed_agree_mps`` (their difference filtered over ``disagree_filter_s``) and the wheels are
+  not slipping, the wheels' (the higher) reading is the speed (a GPS/INS under-reading by a
+  drift is outvoted, so it can make the vehicle drive at most ``speed_agree_mps`` plus the
+  noise faster than the wheels say; a GPS/INS reading higher is used as before). A disagreement beyond
+  ``speed_disagree_fault_mps`` + ``speed_disagree_fault_frac`` x speed for
+  ``speed_disagree_confirm_s`` is fault 1107 (the stated bound on how far a drift goes before it
+  is caught); the reason names the source the IMU backs. No source is dropped for it: a scale
+  error and a drift look alike at constant speed, and the higher reading is the safe one.
+  Wheel slip is told from a GPS/INS drift by the IMU: since the sources last agreed, the wheels
+  slip when their change departs from the integrated acceleration by more than half the
+  disagreement (a spin or an ABS cycle is all the wheels' own); then the GPS/INS speed is used,
+  as before. Limit: a GPS/INS drift slower than twice the accelerometer's bias reads as slip.
+- **position step**: a GPS/INS position that moves, since its last change, more than the speed
+  explains by ``position_step_m`` (or ``position_step_sigmas`` x sqrt 2 x the receiver's own
+  sigma, if wider) is fault 1105; a heading that turns more than the gyro explains by
+  ``heading_step_rad`` is fault 1106. Nothing that keeps the vehicle safe uses the GPS/INS pose
+  (the radar memory is dead-reckoned, ``servers.move_radar``), so the pose is not distrusted:
+  the fault reports the step. A slow position drift is not caught here (it moves nothing).
+- **solution status**: a change is a ``sensor`` notice (code ``gps_solution``); a receiver
+  without a solution ("none") is untrusted (fault 1108) until it has one again.
+
 An untrusted source is trusted again after ``recover_s`` of plausible, varying readings (a
 frozen source stays untrusted while it repeats itself, even once the vehicle has stopped: with
 no trusted speed left the vehicle stays stopped).
@@ -42,7 +66,8 @@ from collections import deque
 
 import msgspec
 
-from overdrive.dynamics.vehicle_params import G_MPS2
+from overdrive.dynamics.validation import finite, valid_sigma
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import GpsIns, Imu, Notice, WheelSpeed
 
 SETTLE_S = 0.5
@@ -58,6 +83,10 @@ class PlausibilityFault(enum.IntEnum):
     WHEEL_SPEED_FROZEN = 1102     # wheel speed repeats one reading while the vehicle moves
     IMU_FROZEN = 1103             # IMU repeats one reading while the speed changes
     GPS_ODOMETER_JUMP = 1104      # GPS/INS odometer backwards, or ahead of what the speed allows
+    GPS_POSITION_STEP = 1105      # GPS/INS position moved more than the speed explains (issue 30)
+    GPS_HEADING_STEP = 1106       # GPS/INS heading turned more than the gyro explains (issue 30)
+    SPEED_DISAGREE = 1107         # GPS/INS and wheel speeds disagree beyond the bound (issue 30)
+    GPS_NO_SOLUTION = 1108        # the receiver reports no solution (issue 30)
     NO_TRUSTED_SPEED = 1110       # no trusted, live speed source is left
 
 
@@ -92,6 +121,31 @@ class PlausibilityConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True
                                   # a wheel sensor at 0 repeat exact values at a standstill; an
                                   # accelerometer bias up to imu_dv_mps / window = 0.2 m/s^2 (4
                                   # sigma of the presets' noise) then never calls them frozen
+    # issue 30: from the vehicle file (``plausibility_config``); defaults are the presets'
+    speed_agree_mps: float = 0.1
+    speed_disagree_fault_mps: float = 0.3
+    speed_disagree_fault_frac: float = 0.03
+    speed_disagree_confirm_s: float = 0.5
+    position_step_m: float = 0.25
+    position_step_sigmas: float = 6.0
+    heading_step_rad: float = 0.05
+    disagree_filter_s: float = 0.2   # the speed difference's filter: 20 periods take a
+                                     # 0.5 m/s (1 sigma) GPS speed noise to 0.08 m/s, inside
+                                     # the agreement band; a drift is seen 0.2 s later
+    step_timing_s: float = 0.02   # a pose's time stamp jitters by one report period (the XGV's
+                                  # 20 ms reports): its speed x this is slack on a step
+
+
+def plausibility_config(params: VehicleParams) -> PlausibilityConfig:
+    """The checks' bounds with the vehicle file's sensor thresholds (issue 30)."""
+    return PlausibilityConfig(
+        speed_agree_mps=params.speed_agree_mps,
+        speed_disagree_fault_mps=params.speed_disagree_fault_mps,
+        speed_disagree_fault_frac=params.speed_disagree_fault_frac,
+        speed_disagree_confirm_s=params.speed_disagree_confirm_s,
+        position_step_m=params.position_step_m,
+        position_step_sigmas=params.position_step_sigmas,
+        heading_step_rad=params.heading_step_rad)
 
 
 class _Track:
@@ -151,6 +205,19 @@ class MotionPlausibility:
         self._progress = {1: 0.0, -1: 0.0}
         # (time, IMU integral) of the last standstill_window_s, for the zero-velocity update
         self._imu_history: deque[tuple[float, float]] = deque()
+        # issue 30: speed disagreement, pose steps, solution status
+        self.gps_reads_low = False        # GPS/INS below the wheels, the wheels not slipping
+        self.wheel_slipping = False
+        self._d_mps = 0.0                 # GPS/INS minus wheel speed, filtered
+        self._cross_s: float | None = None
+        # (IMU integral, wheel speed, GPS/INS speed) at the last agreement
+        self._agree_at: tuple[float, float, float] | None = None
+        self._disagree_since_s: float | None = None
+        self.disagree_fault = False
+        self._pose_at: tuple[float, GpsIns] | None = None   # last change of the GPS/INS pose
+        self._yaw_rate_rps = 0.0
+        self.solution = "unknown"
+        self._pending: list[Notice] = []  # raised on receipt, returned by the next ``step``
 
     # ------------------------------------------------------------------ inputs
 
@@ -171,6 +238,46 @@ class MotionPlausibility:
         sign = (1 if msg.speed_mps > 0 else -1) if abs(msg.speed_mps) >= cfg.sign_mps \
             else self.direction
         self.gps_odo_signed_m += sign * max(d_odo, 0.0)
+        self._check_pose(now_s, msg)
+
+    def _check_pose(self, now_s: float, msg: GpsIns) -> None:
+        """Position and heading steps against the speed and the gyro; solution changes."""
+        cfg = self.config
+        if not (finite(msg.x_m, msg.y_m, msg.heading_rad) and valid_sigma(msg.position_sigma_m)):
+            return   # the server rejects such a reading; a bench that hands it in is ignored
+        if msg.solution != self.solution and self._pose_at is not None:
+            self._pending.append(Notice(kind="sensor", source=self.source, code="gps_solution",
+                                        reason=f"gps_ins solution {self.solution} -> "
+                                               f"{msg.solution}, position sigma "
+                                               f"{msg.position_sigma_m} m"))
+        self.solution = msg.solution
+        at = self._pose_at
+        if at is None or (msg.x_m, msg.y_m) != (at[1].x_m, at[1].y_m):
+            self._pose_at = (now_s, msg)
+        if at is None or (msg.x_m, msg.y_m) == (at[1].x_m, at[1].y_m):
+            return
+        at_s, prev = at
+        dt = max(now_s - at_s, 0.0)
+        v = 0.5 * (prev.speed_mps + msg.speed_mps)
+        mid = prev.heading_rad + 0.5 * math.remainder(msg.heading_rad - prev.heading_rad, math.tau)
+        ex, ey = v * dt * math.cos(mid), v * dt * math.sin(mid)
+        miss_m = math.hypot(msg.x_m - prev.x_m - ex, msg.y_m - prev.y_m - ey)
+        sigma = msg.position_sigma_m if msg.position_sigma_m is not None else 0.0
+        bound_m = max(cfg.position_step_m, cfg.position_step_sigmas * math.sqrt(2.0) * sigma) \
+            + abs(v) * cfg.step_timing_s + 0.5 * cfg.max_accel_mps2 * dt * dt
+        if miss_m > bound_m:
+            self._pending.append(Notice(
+                kind="fault", source=self.source, code=str(int(PlausibilityFault.GPS_POSITION_STEP)),
+                reason=f"gps_ins position stepped {miss_m:.2f} m beyond what {v:.2f} m/s explains "
+                       f"over {dt:.3f} s (bound {bound_m:.2f} m, solution {msg.solution}); the "
+                       "obstacle memory is dead-reckoned and does not follow it"))
+        turn = math.remainder(msg.heading_rad - prev.heading_rad - self._yaw_rate_rps * dt,
+                              math.tau)
+        if abs(turn) > cfg.heading_step_rad + cfg.heading_step_rad * dt / cfg.recover_s:
+            self._pending.append(Notice(
+                kind="fault", source=self.source, code=str(int(PlausibilityFault.GPS_HEADING_STEP)),
+                reason=f"gps_ins heading stepped {turn:+.3f} rad beyond what the gyro explains "
+                       f"over {dt:.3f} s (bound {cfg.heading_step_rad:.3f} rad)"))
 
     def wheel(self, now_s: float, msg: WheelSpeed) -> None:
         prev = self.wheel_track.last
@@ -187,6 +294,7 @@ class MotionPlausibility:
             pitch = self._pitch_rad()
             self.imu_integral_mps += (prev.accel_x_mps2 - G_MPS2 * math.sin(pitch)) \
                 * max(now_s - prev_s, 0.0)
+        self._yaw_rate_rps = msg.yaw_rate_rps if math.isfinite(msg.yaw_rate_rps) else 0.0
         if track.receive(now_s, msg, self.imu_integral_mps):
             v = self.speed_mps
             self.speed_at_imu_same = v if v is not None else 0.0
@@ -222,7 +330,7 @@ class MotionPlausibility:
         cfg = self.config
         if direction:
             self.direction = 1 if direction > 0 else -1
-        notices: list[Notice] = []
+        notices, self._pending = self._pending, []
         gps, wheel, imu = self.gps_track, self.wheel_track, self.imu_track
         history = self._imu_history
         history.append((now_s, self.imu_integral_mps))
@@ -231,15 +339,21 @@ class MotionPlausibility:
         moving = {t.name: self._moving_evidence(t, now_s) for t in (gps, wheel)}
         for track in (gps, wheel):
             frozen = track.repeated_s(now_s) >= cfg.freeze_s - 1e-9 and moving[track.name]
-            bad = frozen or (track is gps and now_s < self.jump_until_s)
+            no_solution = track is gps and self.solution == "none"
+            bad = frozen or no_solution or (track is gps and now_s < self.jump_until_s)
             if frozen:
                 self.reasons[track.name] = (f"{track.name} repeats one reading for "
                                             f"{track.repeated_s(now_s):.2f} s while "
                                             f"{moving[track.name]}")
-            notices += self._judge(track, bad, now_s,
-                                   PlausibilityFault.GPS_ODOMETER_JUMP
-                                   if track is gps and not frozen else track.code)
+            elif no_solution:
+                self.reasons[track.name] = "gps_ins reports no solution"
+            code = track.code
+            if track is gps and not frozen:
+                code = PlausibilityFault.GPS_NO_SOLUTION if no_solution \
+                    else PlausibilityFault.GPS_ODOMETER_JUMP
+            notices += self._judge(track, bad, now_s, code)
         notices += self._judge(imu, self._imu_frozen(now_s), now_s, imu.code)
+        notices += self._cross_check_speeds(now_s)
         self._speed = self._select_speed(now_s)
         live_any = gps.live(now_s, cfg.timeout_s) or wheel.live(now_s, cfg.timeout_s)
         no_speed = self._speed is None and live_any
@@ -328,11 +442,64 @@ class MotionPlausibility:
             self.reasons.pop(track.name, None)
         return []
 
+    def _cross_check_speeds(self, now_s: float) -> list[Notice]:
+        """GPS/INS against wheel speed, wheel slip told apart by the IMU (module docstring)."""
+        cfg = self.config
+        gps, wheel, imu = self.gps_track, self.wheel_track, self.imu_track
+        vg, vw = self._now_speed(gps), self._now_speed(wheel)
+        if (vg is None or vw is None or not gps.live(now_s, cfg.timeout_s)
+                or not wheel.live(now_s, cfg.timeout_s) or not wheel.trusted):
+            self.gps_reads_low = self.wheel_slipping = False
+            self._agree_at, self._disagree_since_s, self._cross_s = None, None, None
+            return []
+        d_raw = vg - vw
+        dt = 0.0 if self._cross_s is None else max(now_s - self._cross_s, 0.0)
+        gain = 1.0 if self._cross_s is None else 1.0 - math.exp(-dt / cfg.disagree_filter_s)
+        self._cross_s = now_s
+        self._d_mps += (d_raw - self._d_mps) * gain
+        d = self._d_mps
+        if abs(d_raw) <= cfg.speed_agree_mps:   # the last reading in agreement (unfiltered:
+            self._agree_at = (self.imu_integral_mps, vw, vg)   # the filter lags a slip's onset)
+        if self._agree_at is None:   # never agreed: nothing tells which is off (as before)
+            self.gps_reads_low, self.wheel_slipping = False, True
+            return []
+        imu_ok = imu.trusted and imu.live(now_s, cfg.timeout_s)
+        wheel_dv = vw - self._agree_at[1]
+        imu_dv = self.imu_integral_mps - self._agree_at[0]
+        self.wheel_slipping = abs(d) > cfg.speed_agree_mps and (
+            not imu_ok or abs(wheel_dv - imu_dv) > 0.5 * abs(d))
+        forward = 1.0 if vw >= 0.0 else -1.0
+        self.gps_reads_low = forward * d < -cfg.speed_agree_mps and not self.wheel_slipping
+        bound = cfg.speed_disagree_fault_mps + cfg.speed_disagree_fault_frac * max(abs(vg), abs(vw))
+        if abs(d) <= bound or self.wheel_slipping:
+            self._disagree_since_s = None
+            if abs(d) <= cfg.speed_agree_mps:   # raised again only after agreeing again
+                self.disagree_fault = False
+            return []
+        if self._disagree_since_s is None:
+            self._disagree_since_s = now_s
+        if self.disagree_fault or now_s - self._disagree_since_s < cfg.speed_disagree_confirm_s - 1e-9:
+            return []
+        self.disagree_fault = True
+        wheel_off, gps_off = abs(wheel_dv - imu_dv), abs(vg - self._agree_at[2] - imu_dv)
+        backs = ("neither (a scale error?)" if max(wheel_off, gps_off) < 0.5 * abs(d)
+                 else "the wheels" if wheel_off < gps_off else "the gps_ins")
+        return [Notice(kind="fault", source=self.source,
+                       code=str(int(PlausibilityFault.SPEED_DISAGREE)),
+                       reason=f"gps_ins {vg:.2f} m/s and wheel speed {vw:.2f} m/s disagree by "
+                              f"more than {bound:.2f} m/s for {cfg.speed_disagree_confirm_s:.2f} "
+                              f"s; the IMU backs {backs}; the higher reading is used")]
+
     def _select_speed(self, now_s: float) -> float | None:
-        for track in (self.gps_track, self.wheel_track):
-            if track.trusted and track.live(now_s, self.config.timeout_s):
-                return self._now_speed(track)
-        return None
+        """The GPS/INS speed, else the wheels'; the wheels' while the GPS/INS reads lower than
+        they do beyond the agreement band and they are not slipping (issue 30)."""
+        live = [self._now_speed(t) for t in (self.gps_track, self.wheel_track)
+                if t.trusted and t.live(now_s, self.config.timeout_s)]
+        if not live:
+            return None
+        if self.gps_reads_low and len(live) == 2:
+            return live[1]
+        return live[0]
 
     def _update_progress(self, now_s: float) -> None:
         cfg = self.config
@@ -369,4 +536,4 @@ class MotionPlausibility:
             self._block_start_s = now_s
 
 
-__all__ = ["MotionPlausibility", "PlausibilityConfig", "PlausibilityFault"]
+__all__ = ["MotionPlausibility", "PlausibilityConfig", "PlausibilityFault", "plausibility_config"]

@@ -30,7 +30,7 @@ from overdrive.messages import (
 )
 from overdrive.scenario.schema import EventSpec, Scenario
 from overdrive.vehicle.plant import ActuatorFaults, World
-from overdrive.vehicle.sim_node import EngineStall, SensorFault
+from overdrive.vehicle.sim_node import EngineStall, GpsStatus, SensorError, SensorFault
 
 SPSS_PERIOD_S = 0.1        # seed 001: "An SPSS message should be sent to the speed server every 100ms"
 REFRESH_PERIOD_S = 0.1     # max_speed limits are refreshed at the same rate, so they never expire
@@ -209,6 +209,14 @@ class ScenarioPlayer:
         elif kind == "sensor":
             out.append((SIM_FAULTS_TOPIC, SensorFault(name=body.name, fault=body.fault, start_s=now_s,
                                                   end_s=now_s + body.for_s, sigma=body.sigma)))
+        elif kind == "sensor_error":
+            out.append((SIM_FAULTS_TOPIC, SensorError(
+                quantity=body.quantity, start_s=now_s,
+                end_s=None if body.for_s is None else now_s + body.for_s, bias=body.bias,
+                drift_per_s=body.drift_per_s, scale=body.scale, direction_rad=body.direction_rad)))
+        elif kind == "gps_status":
+            out.append((SIM_FAULTS_TOPIC, GpsStatus(solution=body.solution,
+                                                    position_sigma_m=body.position_sigma_m)))
         elif kind == "engine_stall":
             out.append((SIM_FAULTS_TOPIC, EngineStall()))
         elif kind == "world":

@@ -150,6 +150,36 @@ class SensorFaultSpec(Spec, frozen=True):
     sigma: Annotated[float, msgspec.Meta(ge=0.0, le=100.0)] = 1.0   # noise, in the sensor's units
 
 
+SensorQuantity = Literal["gps_position", "gps_heading", "gps_speed", "wheel_speed", "imu_accel",
+                         "imu_yaw_rate"]
+"""What a ``sensor_error`` corrupts; its bias is in that quantity's unit (m, rad, m/s, m/s,
+m/s^2, rad/s)."""
+
+
+class SensorErrorSpec(Spec, frozen=True):
+    """A sensor reads wrong from this event on (issue 30): ``reading = scale x true + bias +
+    drift_per_s x (t - at_s)``. A ``bias`` alone is a step; ``drift_per_s`` a slow drift. For
+    ``gps_position`` bias and drift are a distance along ``direction_rad`` (counter-clockwise
+    from the vehicle's heading at the event: pi/2 is a step to the left) and ``scale`` must be
+    1. A GPS/INS speed error also runs the receiver's odometer (it integrates its velocity). A
+    later ``sensor_error`` on the same quantity replaces it (bias 0: healthy again)."""
+
+    quantity: SensorQuantity
+    bias: Annotated[float, msgspec.Meta(ge=-100.0, le=100.0)] = 0.0
+    drift_per_s: Annotated[float, msgspec.Meta(ge=-10.0, le=10.0)] = 0.0
+    scale: Annotated[float, msgspec.Meta(ge=0.5, le=2.0)] = 1.0
+    direction_rad: Annotated[float, msgspec.Meta(ge=-7.0, le=7.0)] = 0.0
+    for_s: Duration | None = None
+
+
+class GpsStatusSpec(Spec, frozen=True):
+    """The receiver's solution status changes (an RTK fix dropping to float): it reports
+    ``solution`` and ``position_sigma_m``, and its position noise becomes that sigma."""
+
+    solution: Literal["rtk_fixed", "rtk_float", "dgps", "single", "dead_reckoning", "none"]
+    position_sigma_m: Annotated[float, msgspec.Meta(ge=0.0, le=100.0)]
+
+
 LagScale = Annotated[float, msgspec.Meta(ge=0.1, le=50.0)]
 
 
@@ -232,6 +262,8 @@ class EventSpec(Spec, frozen=True):
     duplicate: DropSpec | None = None
     reorder: DropSpec | None = None
     sensor: SensorFaultSpec | None = None
+    sensor_error: SensorErrorSpec | None = None
+    gps_status: GpsStatusSpec | None = None
     actuator: ActuatorFaultSpec | None = None
     engine_stall: Empty | None = None
     world: WorldChangeSpec | None = None
@@ -445,6 +477,11 @@ def parse_scenario(data: Any, source: str = "<scenario>",
             raise ScenarioError(source, f"events[{i}].{event.kind}.direction",
                                 f"only channel jaus has directions (a bus channel "
                                 f"{event.body.channel!r} carries one way already)")
+        if (event.sensor_error is not None and event.sensor_error.quantity == "gps_position"
+                and event.sensor_error.scale != 1.0):
+            raise ScenarioError(source, f"events[{i}].sensor_error.scale",
+                                "a position has no scale factor (use bias, drift_per_s and "
+                                "direction_rad)")
         if event.at_s > spec.duration_s:
             raise ScenarioError(source, f"events[{i}].at_s",
                                 f"{event.at_s} s is after the end of the run (duration_s {spec.duration_s})")

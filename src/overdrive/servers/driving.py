@@ -39,7 +39,7 @@ from overdrive.dynamics.ellipse import (
     load_axes_mps2,
     tyre_longitudinal_mps2,
 )
-from overdrive.dynamics.validation import finite
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     AdvanceAuthorization,
@@ -58,7 +58,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.actuators import SteeringMonitor
-from overdrive.safety.plausibility import MotionPlausibility
+from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.gear_hints import GearHints
 from overdrive.servers.move_arrivals import sample_times
@@ -221,6 +221,8 @@ def validate_gps(msg: Any) -> str:
     if not finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.pitch_rad, msg.roll_rad,
                   msg.odometer_m):
         return "gps_ins: pose, speed, attitude or odometer not finite"
+    if not valid_sigma(msg.position_sigma_m):
+        return "gps_ins: position_sigma_m not a finite number >= 0"
     return ""
 
 
@@ -518,7 +520,7 @@ class DrivingModule:
         self.history = OdometerHistory()  # odometer by time: authorizations count from their issue
         # issue 16: motion sensing cross-checked; progress is signed and conservative, so each
         # direction has its own odometer (forward in ``history``, reverse here)
-        self.motion = MotionPlausibility(SOURCE)
+        self.motion = MotionPlausibility(SOURCE, plausibility_config(params))
         self.history_reverse = OdometerHistory()
         self._arrived: list[AdvanceAuthorization] = []   # this period's, applied after the sensors
         self._newest_issue: dict[tuple, float] = {}   # (kind, source[, reverse]) -> newest issued_s

@@ -62,7 +62,7 @@ from overdrive.dynamics.ellipse import (
     lateral_speed_limit_mps,
     max_safe_speed_mps,
 )
-from overdrive.dynamics.validation import finite
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     AdvanceAuthorization,
@@ -83,7 +83,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
-from overdrive.safety.plausibility import MotionPlausibility
+from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
 from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.dispatch import TypeDispatch
@@ -236,7 +236,7 @@ class MoveServer:
         self.planner_clock = PlannerClock(cfg.planner_machine)   # when, on this clock, it was
         # issue 16: motion sensing cross-checked; progress is signed along each direction and
         # conservative (forward in ``history``, reverse here)
-        self.motion = MotionPlausibility(SOURCE)
+        self.motion = MotionPlausibility(SOURCE, plausibility_config(params))
         self.history_reverse = OdometerHistory()
         self.direction = "forward"
         self.curvature_1pm = 0.0
@@ -349,14 +349,14 @@ class MoveServer:
 
     def _gps(self, now_s: float, msg: GpsIns, out: list) -> None:
         if finite(msg.x_m, msg.y_m, msg.heading_rad, msg.speed_mps, msg.odometer_m, msg.pitch_rad,
-                  msg.roll_rad):
+                  msg.roll_rad) and valid_sigma(msg.position_sigma_m):
             self.gps, self.gps_s = msg, now_s
             self.motion.gps(now_s, msg)
         else:
             self._finite_sensor(False, "gps_ins: not finite", out)
 
     def _imu(self, now_s: float, msg: Imu, out: list) -> None:
-        if finite(msg.accel_x_mps2, msg.accel_z_mps2):
+        if finite(msg.accel_x_mps2, msg.accel_z_mps2, msg.yaw_rate_rps):
             self.imu = msg
             self.motion.imu(now_s, msg)
         else:
@@ -487,7 +487,7 @@ class MoveServer:
         # signed progress (a frozen GPS/INS odometer must not stop the clear range shrinking)
         out.extend((Topic.NOTICE, n) for n in self.corridor.update(
             now_s, self.gps, self._path_curvatures(), self.direction == "forward",
-            progress_m=self.progress_m("forward"), pose_trusted=self.motion.trusted("gps_ins")))
+            progress_m=self.progress_m("forward"), yaw_rate_rps=self._yaw_rate_rps()))
         self._learn(min(dt_s, MAX_CONTROL_STEP_S))   # a stall is not one long learning step
         self._brake_ell = self._brake_ellipse()   # the estimates are fixed until the next period
         for cmd in commands:
@@ -502,6 +502,13 @@ class MoveServer:
         self._limits(now_s, out)
         self._outputs(now_s, out)
         return out
+
+    def _yaw_rate_rps(self) -> float:
+        """The radar frame's yaw rate (issue 30): the gyro's while trusted, else the measured
+        steering's curvature at the trusted speed (the GPS/INS heading can step)."""
+        if self.imu is not None and self.motion.trusted("imu"):
+            return self.imu.yaw_rate_rps
+        return -self.speed_mps * self._path_curvatures()[-1]
 
     def _path_curvatures(self) -> tuple[float, ...]:
         """The radar corridor's arcs: the commanded curvature and the one the steering has."""

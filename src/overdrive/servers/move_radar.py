@@ -4,15 +4,16 @@ The VORAD sees a narrow cone (12 deg) and reports the nearest target in it; the 
 a corridor as wide as itself. So the radar alone forgets a target that is inside the
 vehicle's width but off the centre line as soon as it leaves the cone (issue 16). This module:
 
-- **remembers** every target a trusted reading reports, in the world frame (GPS/INS pose at
-  the reading, range and bearing; a reading without a bearing is placed on the centre line),
-  until the vehicle has passed it, or a later trusted reading sees through its place (the
-  point lies well inside the cone, nearer than what the radar now reports). "Passed" needs
-  the pose AND the conservative progress since the last sighting (more than the target's
-  distance then): one outlier pose never erases the memory (review of issue 16). The memory
-  follows only poses the motion cross-check trusts and that agree with the progress since
-  the last accepted pose (``pose_jump_m``); otherwise the nearest target's distance is
-  carried over from the last accepted pose, less the progress since;
+- **remembers** every target a trusted reading reports, in a dead-reckoned local frame (issue
+  30: the pose at the reading is the conservative progress, integrated along the integrated
+  gyro yaw rate, never the GPS/INS pose, whose position and heading can step when an RTK fix
+  drops to float), until the vehicle has passed it, or a later trusted reading sees through
+  its place (the point lies well inside the cone, nearer than what the radar now reports).
+  "Passed" needs the pose AND the conservative progress since the last sighting (more than the
+  target's distance then). The frame drifts only as odometry and gyro do (over the ~6 m a
+  target 0.6 m off the centre line is remembered outside the cone: a 1 % odometry error is
+  0.06 m; a 0.01 rad/s gyro bias at 2 m/s turns it 0.03 rad, 0.18 m); an over-reading odometer
+  moves the vehicle towards its targets (it stops short);
 - judges the **corridor** along the predicted path: the arc of the commanded and of the
   measured (steering) curvature, as wide as the vehicle plus ``corridor_margin_m`` on each
   side (plus what the front corner swings out in a curve), and gives the path distance from
@@ -91,11 +92,6 @@ class RadarConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_on
     trail_tolerance_m: float = 0.15     # the reverse path may deviate this much from the track
                                         # (segments between its points): GPS noise 0.02 m x 3,
                                         # path tracking at 1.5 m/s
-    pose_jump_m: float = 1.0            # a pose further than this beyond the progress since the
-                                        # last accepted pose is an outlier: 50x the GPS/INS
-                                        # position noise (0.02 m), ~10 periods at 10 m/s
-    pose_reanchor_s: float = 1.0        # outliers this long in a row: the pose moved for good
-                                        # (an RTK re-fix); accepted again (100 periods)
 
 
 class Pose(msgspec.Struct, frozen=True):
@@ -177,11 +173,10 @@ class RadarCorridor:
         self.fault: RadarFault | None = None
         self.nearest_m = math.inf
         self.closing_mps = 0.0   # closing speed of this period's reading, if in the corridor
-        # the last accepted pose (its progress, and the memory's nearest distance from it)
-        self.good_pose: GpsIns | None = None
-        self.good_progress_m = 0.0
-        self.good_nearest_m = math.inf
-        self.outlier_since_s: float | None = None
+        # the dead-reckoned pose (issue 30): progress along the integrated gyro yaw rate
+        self.pose = Pose(0.0, 0.0, 0.0)
+        self.pose_progress_m: float | None = None
+        self.pose_s: float | None = None
 
     # ------------------------------------------------------------------ inputs
 
@@ -218,14 +213,30 @@ class RadarCorridor:
 
     # ------------------------------------------------------------------ per period
 
+    def dead_reckon(self, now_s: float, progress_m: float, yaw_rate_rps: float) -> Pose:
+        """Advance the local frame's pose by the progress since the last call, along the
+        heading integrated from the gyro's yaw rate (midpoint); the first call anchors it."""
+        last, last_s = self.pose_progress_m, self.pose_s
+        self.pose_progress_m, self.pose_s = progress_m, now_s
+        if last is None or last_s is None:
+            return self.pose
+        pose = self.pose
+        dh = yaw_rate_rps * max(now_s - last_s, 0.0)
+        ds = progress_m - last
+        mid = pose.heading_rad + 0.5 * dh
+        self.pose = Pose(pose.x_m + ds * math.cos(mid), pose.y_m + ds * math.sin(mid),
+                         math.remainder(pose.heading_rad + dh, math.tau))
+        return self.pose
+
     def update(self, now_s: float, gps: GpsIns | None, curvatures_1pm: Iterable[float],
                forward: bool, *, progress_m: float | None = None,
-               pose_trusted: bool = True) -> list[Notice]:
+               yaw_rate_rps: float = 0.0) -> list[Notice]:
         """One period: health, memory and the nearest corridor target; the fault notices.
 
         ``progress_m``: the conservative signed forward progress (the move server's
-        ``progress_m("forward")``; default the GPS/INS odometer); ``pose_trusted``: whether the
-        motion cross-check trusts the GPS/INS (else the memory is not updated from it)."""
+        ``progress_m("forward")``; default the GPS/INS odometer); ``yaw_rate_rps``: the gyro's
+        (counter-clockwise). The memory lives in the dead-reckoned frame these two integrate
+        to: the GPS/INS pose is not used."""
         cfg = self.config
         msg, self.pending = self.pending, None
         notices: list[Notice] = []
@@ -254,8 +265,7 @@ class RadarCorridor:
         if fault is not None and fault != self.fault:
             notices.append(self._fault_notice(now_s, fault))
         self.fault = fault
-        pose = Pose(gps.x_m, gps.y_m, gps.heading_rad) \
-            if gps is not None and pose_trusted and self._pose_accepted(now_s, gps, odo) else None
+        pose = self.dead_reckon(now_s, odo, yaw_rate_rps)
         ks = tuple(curvatures_1pm)
         self.nearest_m = math.inf
         self.closing_mps = 0.0
@@ -269,28 +279,9 @@ class RadarCorridor:
                     self.front_m + msg.range_m * math.cos(b), msg.range_m * math.sin(b), ks)
                 if math.isfinite(self.nearest_m):
                     self.closing_mps = msg.closing_speed_mps
-            if pose is not None:
-                self._observe(pose, msg, odo)
-        if pose is not None:
-            self.good_nearest_m = self._nearest(pose, ks, odo)
-            self.nearest_m = min(self.nearest_m, self.good_nearest_m)
-        elif math.isfinite(self.good_nearest_m):   # no pose to trust: carry over, less progress
-            self.nearest_m = min(self.nearest_m,
-                                 max(self.good_nearest_m - (odo - self.good_progress_m), 0.0))
+            self._observe(pose, msg, odo)
+        self.nearest_m = min(self.nearest_m, self._nearest(pose, ks, odo))
         return notices
-
-    def _pose_accepted(self, now_s: float, gps: GpsIns, progress_m: float) -> bool:
-        """Whether ``gps`` agrees with the progress since the last accepted pose."""
-        cfg, good = self.config, self.good_pose
-        ok = good is None or math.hypot(gps.x_m - good.x_m, gps.y_m - good.y_m) <= \
-            abs(progress_m - self.good_progress_m) + cfg.pose_jump_m
-        if not ok:
-            if self.outlier_since_s is None:
-                self.outlier_since_s = now_s
-            ok = now_s - self.outlier_since_s >= cfg.pose_reanchor_s
-        if ok:
-            self.good_pose, self.good_progress_m, self.outlier_since_s = gps, progress_m, None
-        return ok
 
     def _fault_notice(self, now_s: float, fault: RadarFault) -> Notice:
         if fault == RadarFault.SILENT:

@@ -51,7 +51,7 @@ from overdrive.dynamics.speed_control import (
     LongitudinalGains,
     gains_for,
 )
-from overdrive.dynamics.validation import finite
+from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, Gear, GearTable, VehicleParams
 from overdrive.messages import (
     GpsIns,
@@ -66,7 +66,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
-from overdrive.safety.plausibility import MotionPlausibility
+from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
 from overdrive.servers.dispatch import TypeDispatch
@@ -191,7 +191,7 @@ class SpeedServer:
         self.last_imu_s: float | None = None
         self.speed_live = False
         self.sensor_lost = False
-        self.motion = MotionPlausibility(SOURCE)   # issue 16: never close on an untrusted speed
+        self.motion = MotionPlausibility(SOURCE, plausibility_config(params))   # issue 16: never close on an untrusted speed
         # faults and e-stop
         self.client_fault = 0
         self.estop_reason = ""
@@ -310,8 +310,10 @@ class SpeedServer:
             self.last_status_rx_s, self.status_new = now_s, True
 
     def _gps_input(self, now_s: float, msg: GpsIns, out: list) -> None:
-        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad, msg.odometer_m),
-                              "gps_ins: speed, pitch or odometer not finite", out):
+        if self._accept_input(finite(msg.speed_mps, msg.pitch_rad, msg.odometer_m)
+                              and valid_sigma(msg.position_sigma_m),
+                              "gps_ins: speed, pitch, odometer or position sigma not finite",
+                              out):
             self.gps, self.last_gps_s = msg, now_s
             self.motion.gps(now_s, msg)
 
@@ -353,6 +355,10 @@ class SpeedServer:
         wheel_fresh = self._fresh(self.last_wheel_s, now_s) and self.motion.trusted("wheel_speed")
         if self.gps is not None and gps_fresh:
             self.speed_mps = self.gps.speed_mps
+            if self.motion.gps_reads_low and self.wheel_mps is not None and wheel_fresh:
+                # issue 30: the GPS/INS reads below the wheels, which are not slipping: the
+                # higher reading (a GPS/INS under-reading by a drift is outvoted)
+                self.speed_mps = self.wheel_mps
         elif self.wheel_mps is not None and wheel_fresh:
             self.speed_mps = self.wheel_mps
         self.speed_live = gps_fresh or wheel_fresh

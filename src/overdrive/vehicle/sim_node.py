@@ -64,6 +64,29 @@ class SensorFault(msgspec.Struct, frozen=True):
     sigma: float = 1.0
 
 
+class SensorError(msgspec.Struct, frozen=True):
+    """A sensor quantity reads ``scale x true + bias + drift_per_s x (t - start_s)`` from
+    ``start_s`` until ``end_s`` (None: the end of the run); a position error lies along
+    ``direction_rad`` from the vehicle's heading at ``start_s`` (scenario ``sensor_error``)."""
+
+    quantity: Literal["gps_position", "gps_heading", "gps_speed", "wheel_speed", "imu_accel",
+                      "imu_yaw_rate"]
+    start_s: float
+    end_s: float | None = None
+    bias: float = 0.0
+    drift_per_s: float = 0.0
+    scale: float = 1.0
+    direction_rad: float = 0.0
+
+
+class GpsStatus(msgspec.Struct, frozen=True):
+    """The receiver's solution status and position sigma from now on (scenario ``gps_status``):
+    the sigma is also the position noise the simulated receiver then has."""
+
+    solution: Literal["rtk_fixed", "rtk_float", "dgps", "single", "dead_reckoning", "none"]
+    position_sigma_m: float
+
+
 class EngineStall(msgspec.Struct, frozen=True):
     """The engine dies now."""
 
@@ -94,6 +117,11 @@ class VehicleSim:
         self.last_now_s: float | None = None
         self.now_s = 0.0
         self.sensor_faults: dict[str, SensorFault] = {}
+        # quantity -> (error, the heading at its onset: a position error's frame)
+        self.sensor_errors: dict[str, tuple[SensorError, float]] = {}
+        self.gps_solution: str = "rtk_fixed"
+        self.gps_sigma_m = params.gps_noise_m
+        self.gps_odometer_error_m = 0.0   # a GPS/INS speed error, integrated by its odometer
         self.last_readings: dict[str, Any] = {}
         self.rejected_sources = 0
         self.gate_interventions: dict[str, int] = {}
@@ -137,6 +165,10 @@ class VehicleSim:
             elif topic == FAULTS_TOPIC:
                 if isinstance(msg, SensorFault):
                     self.sensor_faults[SENSOR_TOPICS[msg.name]] = msg
+                elif isinstance(msg, SensorError):
+                    self.sensor_errors[msg.quantity] = (msg, self.plant.heading_rad)
+                elif isinstance(msg, GpsStatus):
+                    self.gps_solution, self.gps_sigma_m = msg.solution, msg.position_sigma_m
                 elif isinstance(msg, EngineStall):
                     self.plant.stall()
                 else:
@@ -190,7 +222,7 @@ class VehicleSim:
 
         if dt_s > 0.0:
             plant.step(dt_s, throttle, brake, steer, gear, engine_on, self.park_brake)
-        readings = self._sensors(computer_steers, computer_speed)
+        readings = self._sensors(computer_steers, computer_speed, dt_s)
         if self.sensor_faults:
             readings = self._apply_sensor_faults(now_s, readings)
         else:
@@ -242,7 +274,28 @@ class VehicleSim:
     def _count(self, reason: str) -> None:
         self.gate_interventions[reason] = self.gate_interventions.get(reason, 0) + 1
 
-    def _sensors(self, computer_steers: bool, computer_speed: bool) -> list[tuple[str, Any]]:
+    def _error(self, quantity: str, true_value: float) -> float:
+        """``true_value`` as the sensor reads it under its active ``sensor_error`` (if any)."""
+        entry = self.sensor_errors.get(quantity)
+        if entry is None:
+            return true_value
+        err = entry[0]
+        if self.now_s < err.start_s - 1e-9 or (err.end_s is not None
+                                               and self.now_s >= err.end_s - 1e-9):
+            return true_value
+        return err.scale * true_value + err.bias + err.drift_per_s * (self.now_s - err.start_s)
+
+    def _position_error(self) -> tuple[float, float]:
+        """(dx, dy) of an active GPS/INS position error."""
+        entry = self.sensor_errors.get("gps_position")
+        if entry is None:
+            return 0.0, 0.0
+        along = self._error("gps_position", 0.0)
+        angle = entry[1] + entry[0].direction_rad
+        return along * math.cos(angle), along * math.sin(angle)
+
+    def _sensors(self, computer_steers: bool, computer_speed: bool,
+                 dt_s: float = 0.0) -> list[tuple[str, Any]]:
         p, plant, rng = self.params, self.plant, self.noise
         gauss = rng.gauss
         c, s = math.cos(plant.pitch_rad), math.sin(plant.pitch_rad)
@@ -258,21 +311,29 @@ class VehicleSim:
             safety_mode=self.mode, computer_speed=computer_speed,
             computer_steering=computer_steers, command_timeout=self.timeout_latched)
         yaw_rate = -plant.speed_mps * plant.curvature_1pm
+        gps_speed = self._error("gps_speed", plant.speed_mps)
+        self.gps_odometer_error_m += (abs(gps_speed) - abs(plant.speed_mps)) * dt_s
+        dx, dy = self._position_error()
+        sigma = self.gps_sigma_m
         return [
             (Topic.VEHICLE_STATUS, status),
             (Topic.WHEEL_SPEED, WheelSpeed(
-                speed_mps=plant.wheel_speed_mps + gauss(0.0, p.speed_noise_mps))),
+                speed_mps=self._error("wheel_speed", plant.wheel_speed_mps)
+                + gauss(0.0, p.speed_noise_mps))),
             (Topic.GPS_INS, GpsIns(
-                x_m=plant.x_m + gauss(0.0, p.gps_noise_m),
-                y_m=plant.y_m + gauss(0.0, p.gps_noise_m),
-                heading_rad=plant.heading_rad, speed_mps=plant.speed_mps + gauss(0.0, p.speed_noise_mps),
+                x_m=plant.x_m + dx + gauss(0.0, sigma),
+                y_m=plant.y_m + dy + gauss(0.0, sigma),
+                heading_rad=math.remainder(self._error("gps_heading", plant.heading_rad), math.tau),
+                speed_mps=gps_speed + gauss(0.0, p.speed_noise_mps),
                 pitch_rad=plant.pitch_rad, roll_rad=plant.roll_rad,
-                odometer_m=plant.odometer_m)),
+                odometer_m=max(plant.odometer_m + self.gps_odometer_error_m, 0.0),
+                solution=self.gps_solution, position_sigma_m=sigma)),  # type: ignore[arg-type]
             (Topic.IMU, Imu(
-                accel_x_mps2=plant.accel_mps2 + G_MPS2 * s + gauss(0.0, p.accel_noise_mps2),
+                accel_x_mps2=self._error("imu_accel", plant.accel_mps2 + G_MPS2 * s)
+                + gauss(0.0, p.accel_noise_mps2),
                 accel_y_mps2=-plant.lat_accel_mps2 + gauss(0.0, p.accel_noise_mps2),
                 accel_z_mps2=G_MPS2 * c + gauss(0.0, p.accel_noise_mps2 + plant.world.roughness_mps2),
-                yaw_rate_rps=yaw_rate)),
+                yaw_rate_rps=self._error("imu_yaw_rate", yaw_rate))),
             (Topic.RADAR, Radar(target=target, range_m=range_m, closing_speed_mps=closing,
                                 bearing_rad=bearing, seq=self.radar_seq)),
             (Topic.TRUTH, Truth(
@@ -284,4 +345,4 @@ class VehicleSim:
         ]
 
 
-__all__ = ["ActuatorFaults", "VehicleSim", "World"]
+__all__ = ["ActuatorFaults", "GpsStatus", "SensorError", "VehicleSim", "World"]
