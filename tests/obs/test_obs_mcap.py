@@ -28,7 +28,7 @@ from overdrive.observe.mcap_log import (
     resolve_type,
     scenario_yaml,
 )
-from overdrive.run.sim import run_scenario
+from overdrive.run.sim import RunResult, run_scenario
 from overdrive.scenario.schema import load_scenario, parse_scenario
 
 
@@ -38,10 +38,16 @@ def demo_ticks() -> int:
 
 
 @pytest.fixture(scope="module")
-def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def demo_result(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
+    """One `overdrive sim` of the shipped demo (run.mcap recorded), judged by every demo test."""
     out = tmp_path_factory.mktemp("demo")
-    record_run(load_scenario(DEMO), out)
-    return out
+    return run_scenario(load_scenario(DEMO), out, plot=False)
+
+
+@pytest.fixture(scope="module")
+def demo_run(demo_result: RunResult) -> Path:
+    assert (demo_result.out_dir / "run.mcap").exists(), "overdrive sim records run.mcap"
+    return demo_result.out_dir
 
 
 def _check_against_schema(value: object, schema: dict, where: str) -> None:
@@ -183,13 +189,17 @@ SIM_RECORDS_MCAP = "record_mcap" in inspect.signature(run_scenario).parameters
 
 
 @pytest.mark.skipif(not SIM_RECORDS_MCAP, reason="sim.py wiring of issue 11 not applied yet")
-def test_overdrive_sim_writes_run_mcap(tmp_path: Path) -> None:
-    result = run_scenario(load_scenario(DEMO), tmp_path, plot=False)
-    with open(tmp_path / "run.mcap", "rb") as f:
+def test_overdrive_sim_writes_run_mcap(demo_result: RunResult, tmp_path: Path) -> None:
+    out = demo_result.out_dir
+    with open(out / "run.mcap", "rb") as f:
         stats = make_reader(f).get_summary().statistics
-    rows = len((tmp_path / "trace.csv").read_text(encoding="utf-8").splitlines()) - 1
+    rows = len((out / "trace.csv").read_text(encoding="utf-8").splitlines()) - 1
     assert stats.message_count > 6 * rows
-    assert read_info(tmp_path / "run.mcap").nodes == ["vehicle", "scenario", "move", "driving", "speed"]
-    assert result.exit_code == 0
-    no_mcap = run_scenario(load_scenario(DEMO), tmp_path / "b", plot=False, record_mcap=False)
+    assert read_info(out / "run.mcap").nodes == ["vehicle", "scenario", "move", "driving", "speed"]
+    assert demo_result.exit_code == 0
+    # the switch, not the scenario, decides: the short set-speed run, recorded then not
+    short = parse_scenario(speed_scenario())
+    recorded = run_scenario(short, tmp_path / "a", plot=False)
+    assert recorded.exit_code == 0 and (tmp_path / "a" / "run.mcap").exists()
+    no_mcap = run_scenario(short, tmp_path / "b", plot=False, record_mcap=False)
     assert no_mcap.exit_code == 0 and not (tmp_path / "b" / "run.mcap").exists()
