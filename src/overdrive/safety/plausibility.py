@@ -389,8 +389,10 @@ class MotionPlausibility:
                 # at rest the IMU counts only from SETTLE_S after the repeats began: the end of
                 # a braking (a lagging or velocity-derived IMU, as over JAUS) decelerates into
                 # the stop (interop drive: -0.23 m/s after ojVehicleSim stood)
-                settled = [v for t, v in self._imu_history if t >= track.same_since_s + SETTLE_S]
-                dv = self.imu_integral_mps - settled[0] if settled else 0.0
+                # the first sample from then on, found without building a list every period
+                since_s = track.same_since_s + SETTLE_S
+                settled = next((v for t, v in self._imu_history if t >= since_s), None)
+                dv = self.imu_integral_mps - settled if settled is not None else 0.0
             if abs(dv) >= cfg.imu_dv_mps:
                 return f"the IMU integrates to {dv:+.2f} m/s since"
         return ""
