@@ -390,8 +390,11 @@ class MotionPlausibility:
                 # a braking (a lagging or velocity-derived IMU, as over JAUS) decelerates into
                 # the stop (interop drive: -0.23 m/s after ojVehicleSim stood)
                 # the first sample from then on, found without building a list every period
+                # (none when even the newest, appended this period by step, is older)
                 since_s = track.same_since_s + SETTLE_S
-                settled = next((v for t, v in self._imu_history if t >= since_s), None)
+                history = self._imu_history
+                settled = None if history[-1][0] < since_s else \
+                    next(v for t, v in history if t >= since_s)
                 dv = self.imu_integral_mps - settled if settled is not None else 0.0
             if abs(dv) >= cfg.imu_dv_mps:
                 return f"the IMU integrates to {dv:+.2f} m/s since"
