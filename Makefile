@@ -92,6 +92,7 @@ SAFETY_MODULES := $(subst /,.,$(patsubst src/%.py,%,$(SAFETY_FILES))) \
                   overdrive.servers.speed_table overdrive.servers.direction_hold \
                   overdrive.vehicle.modes overdrive.observe.judge
 SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_monitor.py tests/safety/test_watchdog.py \
+                tests/safety/test_plausibility_cross_checks.py \
                 tests/safety/test_plausibility.py tests/safety/test_actuators.py \
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py \
                 tests/servers/test_direction_hold.py \

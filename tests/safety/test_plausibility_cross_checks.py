@@ -220,3 +220,18 @@ def test_a_gps_ins_with_a_bad_position_sigma_is_rejected_by_every_server(sigma: 
     rejected = [m for t, m in out if t == Topic.NOTICE and m.kind == "rejected"]
     assert rejected and "gps_ins" in rejected[0].reason
     assert node.motion.gps_track.last is None, "never handed to the cross-checks"
+
+
+@pytest.mark.parametrize("bad", [{"x_m": math.nan}, {"y_m": math.inf}, {"heading_rad": math.nan},
+                                 {"position_sigma_m": -1.0}, {"position_sigma_m": math.nan}])
+def test_a_pose_the_servers_would_reject_is_not_checked_for_steps(bad: dict[str, float]) -> None:
+    """A non-finite pose or a bad sigma handed straight to the checks (the servers reject such
+    a reading first) raises no step, heading or solution notice and never crashes; the next
+    good fix is judged against the last good one."""
+    node = MotionPlausibility("test", CFG)
+    fix = {"x_m": 0.0, "y_m": 0.0, "heading_rad": 0.0, "speed_mps": 0.0, "pitch_rad": 0.0,
+           "roll_rad": 0.0, "odometer_m": 0.0}
+    node.gps(0.0, GpsIns(**fix))
+    node.gps(0.1, GpsIns(**{**fix, **bad}))
+    node.gps(0.2, GpsIns(**fix))
+    assert node._pending == []
