@@ -854,7 +854,8 @@ class XgvClient:
         if pose is not None:
             out.append((Topic.GPS_INS, GpsIns(
                 x_m=pose.x_m or 0.0, y_m=-(pose.y_m or 0.0), heading_rad=-(pose.yaw_rad or 0.0),
-                speed_mps=v, pitch_rad=pitch, roll_rad=roll, odometer_m=self.odometer_m)))
+                speed_mps=v, pitch_rad=pitch, roll_rad=roll, odometer_m=self.odometer_m,
+                position_sigma_m=pose.position_rms_m)))   # the vehicle's own rms, if it says
         out.append((Topic.IMU, Imu(
             accel_x_mps2=self.accel_mps2 + G_MPS2 * math.sin(pitch),
             accel_y_mps2=-v * yaw_rate, accel_z_mps2=G_MPS2 * math.cos(pitch),
