@@ -90,10 +90,13 @@ def assert_stopped_short(preset: str, result: Any) -> None:
 
 # --------------------------------------------------------------------------- pose steps
 
+@pytest.mark.variants   # `make test`: one case in four and the edges; `make test-variants`: all
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize(("step_m", "direction_rad"), [
-    (0.3, -math.pi / 2), (0.8, -math.pi / 2), (0.8, math.pi / 2), (1.5, math.pi),
-    (3.0, 0.0), (3.0, -math.pi / 2), (5.0, -3 * math.pi / 4), (5.0, math.pi / 4)])
+    pytest.param(0.3, -math.pi / 2, marks=pytest.mark.variant_edge),
+    pytest.param(0.8, -math.pi / 2, marks=pytest.mark.variant_edge),   # the issue's case
+    (0.8, math.pi / 2), (1.5, math.pi), (3.0, 0.0), (3.0, -math.pi / 2),
+    (5.0, -3 * math.pi / 4), pytest.param(5.0, math.pi / 4, marks=pytest.mark.variant_edge)])
 def test_a_gps_position_step_after_the_obstacle_left_the_cone_never_reaches_it(
         preset: str, step_m: float, direction_rad: float) -> None:
     """Steps of 0.3-5 m in all directions (towards the obstacle's side, away, along): the
@@ -144,8 +147,11 @@ def test_a_slow_lateral_gps_drift_never_moves_the_remembered_obstacle(preset: st
 LIMIT_MPS = 8.0
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-@pytest.mark.parametrize("rate_mps2", [-0.5, -0.1, -0.03, 0.03, 0.1, 0.5])
+@pytest.mark.parametrize("rate_mps2", [pytest.param(-0.5, marks=pytest.mark.variant_edge), -0.1,
+                                       -0.03, 0.03, 0.1,
+                                       pytest.param(0.5, marks=pytest.mark.variant_edge)])
 def test_a_drifting_gps_speed_is_outvoted_and_a_fault_past_the_bound(preset: str,
                                                                       rate_mps2: float) -> None:
     """GPS/INS speed bias growing at ``rate_mps2`` (both signs), the wheels healthy: true speed
@@ -236,6 +242,7 @@ def test_a_receiver_without_a_solution_is_untrusted_and_a_change_is_reported(pre
 SWEEP = Path(__file__).resolve().parents[2] / "scenarios" / "sweep-move.yaml"
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("run_index", [0, 1, 2, 3, 4, 5])
 def test_sampled_runs_of_the_move_sweep_raise_no_sensor_fault(preset: str, run_index: int) -> None:

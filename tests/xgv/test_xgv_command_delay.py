@@ -72,9 +72,13 @@ def assert_judged_safe(trace: list[dict[str, Any]], summary: dict[str, Any]) -> 
 
 # ----------------------------------------------------------------------------- whole runs
 
+@pytest.mark.variants   # `make test`: the thresholds' edges and one case in four of the rest
 @pytest.mark.parametrize("control", ["wrench", "motion-profile"])
-@pytest.mark.parametrize("delay_s", [0.03, 0.05, 0.1, 0.11, 0.12, 0.2, 0.23, 0.26, 0.3, 0.5,
-                                     1.0, 2.0])
+@pytest.mark.parametrize("delay_s", [
+    0.03, 0.05, pytest.param(0.1, marks=pytest.mark.variant_edge),
+    pytest.param(0.11, marks=pytest.mark.variant_edge), 0.12, 0.2, 0.23,
+    pytest.param(0.26, marks=pytest.mark.variant_edge), 0.3,
+    pytest.param(0.5, marks=pytest.mark.variant_edge), 1.0, 2.0])
 def test_a_delay_towards_the_vehicle_is_slowed_then_stopped_never_overrun_nor_over_the_limit(
         control: str, delay_s: float) -> None:
     """Delayed from 8 s at cruise: a round trip beyond 100 ms (50 ms as an age) lowers the
