@@ -208,6 +208,7 @@ class RoundTrips:
     def __init__(self) -> None:
         self.sent_s: dict[int, float] = {}    # tag -> when the probe with it went out
         self.tags: tuple[int, ...] = ()       # those the vehicle can answer exactly (``support``)
+        self.presence: int | None = None      # the stream's presence vector they came from
         self.next_tag = 0
         self.next_s = -math.inf
         self.armed = False                    # the vehicle has answered a probe
@@ -219,7 +220,11 @@ class RoundTrips:
     def support(self, presence: int) -> None:
         """The fields the vehicle's own Velocity State stream carries: tags are drawn from
         them only, since a vehicle answers with the fields asked that it supports (a tag
-        asking for others would come back as another tag). A change starts afresh."""
+        asking for others would come back as another tag). A change starts afresh; the same
+        stream (every report, 100 Hz) costs one comparison."""
+        if presence == self.presence:
+            return
+        self.presence = presence
         tags = tuple(tag for tag in PROBE_TAGS if tag & ~presence == 0)
         if tags != self.tags:
             self.reset()
