@@ -101,8 +101,13 @@ def test_launch_refuses_to_engage_while_a_clock_offset_is_beyond_tolerance(run_d
     assert done.returncode == 1, done.stderr[-2000:]
     line = next((x for x in done.stderr.splitlines()
                  if x.startswith("refused to engage: clocks launcher-speed: ")), "")
-    assert re.search(r"speed's clock (399|400)\.\d ms ahead of launcher's \(uncertainty \d+\.\d ms\): "
-                     r"offset beyond 250 ms$", line), done.stderr
+    found = re.search(r"speed's clock (\d+\.\d) ms ahead of launcher's \(uncertainty (\d+\.\d) ms\): "
+                      r"offset beyond 250 ms$", line)
+    assert found, done.stderr
+    # The 400 ms injected offset is measured within the uncertainty the launcher states (plus the
+    # 0.1 ms the message rounds to): 398.9 ms +- 3.6 ms was seen on a loaded CI host.
+    offset_ms, uncertainty_ms = float(found[1]), float(found[2])
+    assert abs(offset_ms - 400.0) <= uncertainty_ms + 0.1, line
     summary = json.loads((out / "summary.json").read_text())
     faults = [e for e in summary["events"] if e.get("code") == "clock_offset"]
     assert faults and all(e["kind"] == "fault" for e in faults)
@@ -152,7 +157,9 @@ def test_a_planner_ahead_of_the_move_servers_clock_is_placed_across_processes(
     assert planner["refusals"] == 0 and planner["lo_s"] <= -0.12 <= planner["hi_s"], planner
     assert summary["odometer_m"] == pytest.approx(10.0, abs=0.6)
 
-    scenario = parse_scenario({**MOVE_SCENARIO, "events": [
+    # refused at 0.5 s and 1.0 s: 3 s more shows that nothing moves (the first run's 10 s are
+    # for its MOVE to complete)
+    scenario = parse_scenario({**MOVE_SCENARIO, "duration_s": 4, "events": [
         *MOVE_SCENARIO["events"],
         {"at_s": 1.0, "move": {"distance_m": 10, "maxspeed_mps": 4, "curvature_1pm": 0}}]},
         "planner-ahead-same")

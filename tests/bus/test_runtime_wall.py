@@ -187,7 +187,8 @@ class _Recorder:
         return []
 
 
-LONG_PERIOD_S = 5.0   # far longer than any wake-up delay, even on a loaded host
+LONG_PERIOD_S = 1.5   # far longer than any wake-up delay (ms), even on a loaded host; the
+                      # run ends one period after stop() (a wait is not cut short by it)
 
 
 def _run_until(rt: WallRuntime, done, timeout_s: float = 30.0) -> None:

@@ -219,20 +219,23 @@ def test_friction_drop_in_a_curve_stops_near_the_arc(preset: str, curvature_1pm:
     assert run_["after_drop_m"] <= max(run_["remaining_m"], shortest)
 
 
+@pytest.mark.variants   # `make test`: one case in four; `make test-variants`: all
+@pytest.mark.parametrize("speed_fraction", [1.0, 0.7])
+@pytest.mark.parametrize(("friction", "dropped"), DROPS)
+@pytest.mark.parametrize("curvature_1pm", CURVES)
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-def test_a_drop_the_curve_cannot_hold_is_always_caught(preset: str) -> None:
+def test_a_drop_the_curve_cannot_hold_is_always_caught(preset: str, curvature_1pm: float,
+                                                       friction: float, dropped: float,
+                                                       speed_fraction: float) -> None:
     """Where the dropped friction's physical lateral axis is below the curve's demand, the
     vehicle slides unless stopped: the stop must come (both directions, several curves). A
     demand within 5 % of the axis may end with the slowing alone (then within TRACKING_M)."""
     params = PRESETS[preset]
-    for curvature_1pm in CURVES:
-        for friction, dropped in DROPS:
-            for fraction in (1.0, 0.7):
-                run_ = friction_drop_run(preset, curvature_1pm, friction, dropped, fraction)
-                lateral_mps2 = run_["speed_mps"] ** 2 * abs(curvature_1pm)
-                physical_mps2 = params.skidpad_lat_g * 9.80665 * dropped / 0.9
-                if lateral_mps2 > physical_mps2 * 1.05:
-                    assert run_["grip_lost"], (curvature_1pm, friction, dropped, fraction)
+    run_ = friction_drop_run(preset, curvature_1pm, friction, dropped, speed_fraction)
+    lateral_mps2 = run_["speed_mps"] ** 2 * abs(curvature_1pm)
+    physical_mps2 = params.skidpad_lat_g * 9.80665 * dropped / 0.9
+    if lateral_mps2 > physical_mps2 * 1.05:
+        assert run_["grip_lost"], (curvature_1pm, friction, dropped, speed_fraction)
 
 
 def test_the_issue_30_case_no_longer_drives_a_circle() -> None:

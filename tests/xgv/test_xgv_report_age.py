@@ -119,8 +119,10 @@ def test_loss_is_counted_from_the_reports_sequence_numbers() -> None:
 
 # ------------------------------------------------------------------ a stalled client
 
+@pytest.mark.variants   # `make test`: one case in four and either side of the 0.2 s bound
 @pytest.mark.parametrize("control", ["wrench", "motion-profile"])
-@pytest.mark.parametrize("for_s", [0.05, 0.15, 0.18, 0.21, 0.3, 1.0, 3.0])
+@pytest.mark.parametrize("for_s", [0.05, 0.15, pytest.param(0.18, marks=pytest.mark.variant_edge),
+                                   pytest.param(0.21, marks=pytest.mark.variant_edge), 0.3, 1.0, 3.0])
 def test_a_stalled_client_counts_the_distance_driven_meanwhile(control: str, for_s: float) -> None:
     """The whole stack stalled mid-MOVE at 8 m/s: every report counted by its stamp (the
     client's odometer is the XGV's), no overrun, never above the MOVE's limit; a stall longer
@@ -147,8 +149,12 @@ def test_a_stalled_client_counts_the_distance_driven_meanwhile(control: str, for
 
 # ------------------------------------------------------------------ a delayed link
 
+@pytest.mark.variants   # `make test`: one case in four, either side of the stop and the longest
 @pytest.mark.parametrize("control", ["wrench", "motion-profile"])
-@pytest.mark.parametrize("delay_s", [0.02, 0.03, 0.05, 0.08, 0.11, 0.12, 0.2, 0.3, 0.5])
+@pytest.mark.parametrize("delay_s", [0.02, 0.03, 0.05, 0.08,
+                                     *(pytest.param(d, marks=pytest.mark.variant_edge)
+                                       for d in (0.11, 0.12)), 0.2, 0.3,
+                                     pytest.param(0.5, marks=pytest.mark.variant_edge)])
 def test_a_delayed_link_is_slowed_then_stopped_never_overrun_nor_over_the_limit(
         control: str, delay_s: float) -> None:
     """The link delayed each way from 6 s (at cruise): reports older than 50 ms lower the max
