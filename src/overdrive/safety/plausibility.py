@@ -189,6 +189,7 @@ class MotionPlausibility:
         self.gps_track = _Track("gps_ins", PlausibilityFault.GPS_FROZEN)
         self.wheel_track = _Track("wheel_speed", PlausibilityFault.WHEEL_SPEED_FROZEN)
         self.imu_track = _Track("imu", PlausibilityFault.IMU_FROZEN)
+        self._speed_tracks = (self.gps_track, self.wheel_track)
         self.direction = 1                # engaged direction: signs a near-zero GPS speed
         self.imu_integral_mps = 0.0       # integral of the IMU's longitudinal acceleration
         self.speed_at_imu_same = 0.0      # trusted speed when the IMU's reading last changed
@@ -336,7 +337,10 @@ class MotionPlausibility:
         history.append((now_s, self.imu_integral_mps))
         while history and history[0][0] < now_s - cfg.standstill_window_s - 1e-9:
             history.popleft()
-        moving = {t.name: self._moving_evidence(t, now_s) for t in (gps, wheel)}
+        # the evidence of motion, asked only of a source that repeats (it is used only then),
+        # of both before either is judged (judging changes the trust it reads)
+        moving = {t.name: self._moving_evidence(t, now_s)
+                  if t.repeated_s(now_s) >= cfg.freeze_s - 1e-9 else "" for t in (gps, wheel)}
         for track in (gps, wheel):
             frozen = track.repeated_s(now_s) >= cfg.freeze_s - 1e-9 and moving[track.name]
             no_solution = track is gps and self.solution == "none"
@@ -507,38 +511,41 @@ class MotionPlausibility:
         return live[0]
 
     def _update_progress(self, now_s: float) -> None:
+        """Progress per direction from the trusted odometers (every period: no dicts built but
+        the result, each float computed as ``d * (value - base)`` then ``committed + best``)."""
         cfg = self.config
-        values = {"gps_ins": self.gps_odo_signed_m, "wheel_speed": self.wheel_odo_m}
-        tracks = {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track}
+        gps_m, wheel_m = self.gps_odo_signed_m, self.wheel_odo_m
         base = self._base
         # untrusted sources count only when no source is trusted (then the largest is kept:
         # conservative); a trusted one never lets an untrusted one's jump or freeze count
-        any_trusted = any(t.trusted and t.last is not None for t in tracks.values())
-        for name, track in tracks.items():
+        any_trusted = any(t.trusted and t.last is not None for t in self._speed_tracks)
+        for name, track, value in (("gps_ins", self.gps_track, gps_m),
+                                   ("wheel_speed", self.wheel_track, wheel_m)):
             ok = track.last is not None and (track.trusted or not any_trusted)
             if not ok:
                 base[name] = None
             elif base[name] is None:
-                base[name] = values[name]
+                base[name] = value
+        gps_base, wheel_base = base["gps_ins"], base["wheel_speed"]
+        committed = self._committed
         progress = {}
         for d in (1, -1):
-            deltas = {n: d * (values[n] - b) for n, b in base.items() if b is not None}
-            best = deltas.get("gps_ins")
-            wheel = deltas.get("wheel_speed")
+            best = d * (gps_m - gps_base) if gps_base is not None else None
+            wheel = d * (wheel_m - wheel_base) if wheel_base is not None else None
             # the wheel counts when it says more than the GPS/INS by more than its own noise
             # (else its noise alone would be taken whenever it happens to be the larger)
             if wheel is not None and (best is None or wheel > best + cfg.wheel_noise_m):
                 best = wheel
-            progress[d] = self._committed[d] + (best if best is not None else 0.0)
+            progress[d] = committed[d] + (best if best is not None else 0.0)
         self._progress = progress
         if self._block_start_s is None:
             self._block_start_s = now_s
         elif now_s - self._block_start_s >= cfg.block_s - 1e-9:
             self._committed = dict(progress)
+            values = {"gps_ins": gps_m, "wheel_speed": wheel_m}
             for name in base:
                 if base[name] is not None:
                     base[name] = values[name]
             self._block_start_s = now_s
-
 
 __all__ = ["MotionPlausibility", "PlausibilityConfig", "PlausibilityFault", "plausibility_config"]
