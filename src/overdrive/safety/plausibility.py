@@ -148,6 +148,10 @@ def plausibility_config(params: VehicleParams) -> PlausibilityConfig:
         heading_step_rad=params.heading_step_rad)
 
 
+_SPEED_MESSAGES = (GpsIns, WheelSpeed)
+"""The readings that carry a speed (``_now_speed``): one tuple, not one built per call."""
+
+
 class _Track:
     """One source: its last reading, how long it has repeated, and whether it is trusted."""
 
@@ -313,7 +317,7 @@ class MotionPlausibility:
 
     def _now_speed(self, track: _Track) -> float | None:
         msg = track.last
-        return msg.speed_mps if isinstance(msg, (GpsIns, WheelSpeed)) else None
+        return msg.speed_mps if isinstance(msg, _SPEED_MESSAGES) else None
 
     @property
     def speed_mps(self) -> float | None:
@@ -357,9 +361,11 @@ class MotionPlausibility:
                     else PlausibilityFault.GPS_ODOMETER_JUMP
             notices += self._judge(track, bad, now_s, code)
         notices += self._judge(imu, self._imu_frozen(now_s), now_s, imu.code)
-        notices += self._cross_check_speeds(now_s)
-        self._speed = self._select_speed(now_s)
-        live_any = gps.live(now_s, cfg.timeout_s) or wheel.live(now_s, cfg.timeout_s)
+        # liveness depends on the readings only, not on the trust just judged: once a period
+        gps_live, wheel_live = gps.live(now_s, cfg.timeout_s), wheel.live(now_s, cfg.timeout_s)
+        notices += self._cross_check_speeds(now_s, gps_live, wheel_live)
+        self._speed = self._select_speed(gps_live, wheel_live)
+        live_any = gps_live or wheel_live
         no_speed = self._speed is None and live_any
         if no_speed and not self.no_speed:
             notices.append(Notice(kind="fault", source=self.source,
@@ -451,13 +457,13 @@ class MotionPlausibility:
             self.reasons.pop(track.name, None)
         return []
 
-    def _cross_check_speeds(self, now_s: float) -> list[Notice]:
-        """GPS/INS against wheel speed, wheel slip told apart by the IMU (module docstring)."""
+    def _cross_check_speeds(self, now_s: float, gps_live: bool, wheel_live: bool) -> list[Notice]:
+        """GPS/INS against wheel speed, wheel slip told apart by the IMU (module docstring);
+        ``gps_live``, ``wheel_live``: each source's liveness this period."""
         cfg = self.config
         gps, wheel, imu = self.gps_track, self.wheel_track, self.imu_track
         vg, vw = self._now_speed(gps), self._now_speed(wheel)
-        if (vg is None or vw is None or not gps.live(now_s, cfg.timeout_s)
-                or not wheel.live(now_s, cfg.timeout_s) or not wheel.trusted):
+        if (vg is None or vw is None or not gps_live or not wheel_live or not wheel.trusted):
             self.gps_reads_low = self.wheel_slipping = False
             self._agree_at, self._disagree_since_s, self._cross_s = None, None, None
             return []
@@ -499,11 +505,12 @@ class MotionPlausibility:
                               f"more than {bound:.2f} m/s for {cfg.speed_disagree_confirm_s:.2f} "
                               f"s; the IMU backs {backs}; the higher reading is used")]
 
-    def _select_speed(self, now_s: float) -> float | None:
+    def _select_speed(self, gps_live: bool, wheel_live: bool) -> float | None:
         """The GPS/INS speed, else the wheels'; the wheels' while the GPS/INS reads lower than
         they do beyond the agreement band and they are not slipping (issue 30)."""
-        live = [self._now_speed(t) for t in (self.gps_track, self.wheel_track)
-                if t.trusted and t.live(now_s, self.config.timeout_s)]
+        live = [self._now_speed(t) for t, is_live in ((self.gps_track, gps_live),
+                                                      (self.wheel_track, wheel_live))
+                if t.trusted and is_live]
         if not live:
             return None
         if self.gps_reads_low and len(live) == 2:
