@@ -194,6 +194,7 @@ class MotionPlausibility:
         self.wheel_track = _Track("wheel_speed", PlausibilityFault.WHEEL_SPEED_FROZEN)
         self.imu_track = _Track("imu", PlausibilityFault.IMU_FROZEN)
         self._speed_tracks = (self.gps_track, self.wheel_track)
+        self._tracks = {t.name: t for t in (self.gps_track, self.wheel_track, self.imu_track)}
         self.direction = 1                # engaged direction: signs a near-zero GPS speed
         self.imu_integral_mps = 0.0       # integral of the IMU's longitudinal acceleration
         self.speed_at_imu_same = 0.0      # trusted speed when the IMU's reading last changed
@@ -312,8 +313,7 @@ class MotionPlausibility:
 
     def trusted(self, name: str) -> bool:
         """Whether ``name`` ("gps_ins", "wheel_speed", "imu") is trusted (liveness aside)."""
-        return {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track,
-                "imu": self.imu_track}[name].trusted
+        return self._tracks[name].trusted
 
     def _now_speed(self, track: _Track) -> float | None:
         msg = track.last
