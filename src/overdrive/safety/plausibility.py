@@ -258,9 +258,11 @@ class MotionPlausibility:
                                                f"{msg.position_sigma_m} m"))
         self.solution = msg.solution
         at = self._pose_at
-        if at is None or (msg.x_m, msg.y_m) != (at[1].x_m, at[1].y_m):
+        # both positions finite (checked above and when stored): compared without tuples
+        moved = at is not None and (msg.x_m != at[1].x_m or msg.y_m != at[1].y_m)
+        if at is None or moved:
             self._pose_at = (now_s, msg)
-        if at is None or (msg.x_m, msg.y_m) == (at[1].x_m, at[1].y_m):
+        if not moved:
             return
         at_s, prev = at
         dt = max(now_s - at_s, 0.0)
