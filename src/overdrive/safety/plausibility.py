@@ -148,6 +148,10 @@ def plausibility_config(params: VehicleParams) -> PlausibilityConfig:
         heading_step_rad=params.heading_step_rad)
 
 
+_SPEED_MESSAGES = (GpsIns, WheelSpeed)
+"""The readings that carry a speed (``_now_speed``): one tuple, not one built per call."""
+
+
 class _Track:
     """One source: its last reading, how long it has repeated, and whether it is trusted."""
 
@@ -189,6 +193,8 @@ class MotionPlausibility:
         self.gps_track = _Track("gps_ins", PlausibilityFault.GPS_FROZEN)
         self.wheel_track = _Track("wheel_speed", PlausibilityFault.WHEEL_SPEED_FROZEN)
         self.imu_track = _Track("imu", PlausibilityFault.IMU_FROZEN)
+        self._speed_tracks = (self.gps_track, self.wheel_track)
+        self._tracks = {t.name: t for t in (self.gps_track, self.wheel_track, self.imu_track)}
         self.direction = 1                # engaged direction: signs a near-zero GPS speed
         self.imu_integral_mps = 0.0       # integral of the IMU's longitudinal acceleration
         self.speed_at_imu_same = 0.0      # trusted speed when the IMU's reading last changed
@@ -252,9 +258,11 @@ class MotionPlausibility:
                                                f"{msg.position_sigma_m} m"))
         self.solution = msg.solution
         at = self._pose_at
-        if at is None or (msg.x_m, msg.y_m) != (at[1].x_m, at[1].y_m):
+        # both positions finite (checked above and when stored): compared without tuples
+        moved = at is not None and (msg.x_m != at[1].x_m or msg.y_m != at[1].y_m)
+        if at is None or moved:
             self._pose_at = (now_s, msg)
-        if at is None or (msg.x_m, msg.y_m) == (at[1].x_m, at[1].y_m):
+        if not moved:
             return
         at_s, prev = at
         dt = max(now_s - at_s, 0.0)
@@ -307,12 +315,11 @@ class MotionPlausibility:
 
     def trusted(self, name: str) -> bool:
         """Whether ``name`` ("gps_ins", "wheel_speed", "imu") is trusted (liveness aside)."""
-        return {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track,
-                "imu": self.imu_track}[name].trusted
+        return self._tracks[name].trusted
 
     def _now_speed(self, track: _Track) -> float | None:
         msg = track.last
-        return msg.speed_mps if isinstance(msg, (GpsIns, WheelSpeed)) else None
+        return msg.speed_mps if isinstance(msg, _SPEED_MESSAGES) else None
 
     @property
     def speed_mps(self) -> float | None:
@@ -336,7 +343,10 @@ class MotionPlausibility:
         history.append((now_s, self.imu_integral_mps))
         while history and history[0][0] < now_s - cfg.standstill_window_s - 1e-9:
             history.popleft()
-        moving = {t.name: self._moving_evidence(t, now_s) for t in (gps, wheel)}
+        # the evidence of motion, asked only of a source that repeats (it is used only then),
+        # of both before either is judged (judging changes the trust it reads)
+        moving = {t.name: self._moving_evidence(t, now_s)
+                  if t.repeated_s(now_s) >= cfg.freeze_s - 1e-9 else "" for t in (gps, wheel)}
         for track in (gps, wheel):
             frozen = track.repeated_s(now_s) >= cfg.freeze_s - 1e-9 and moving[track.name]
             no_solution = track is gps and self.solution == "none"
@@ -353,9 +363,11 @@ class MotionPlausibility:
                     else PlausibilityFault.GPS_ODOMETER_JUMP
             notices += self._judge(track, bad, now_s, code)
         notices += self._judge(imu, self._imu_frozen(now_s), now_s, imu.code)
-        notices += self._cross_check_speeds(now_s)
-        self._speed = self._select_speed(now_s)
-        live_any = gps.live(now_s, cfg.timeout_s) or wheel.live(now_s, cfg.timeout_s)
+        # liveness depends on the readings only, not on the trust just judged: once a period
+        gps_live, wheel_live = gps.live(now_s, cfg.timeout_s), wheel.live(now_s, cfg.timeout_s)
+        notices += self._cross_check_speeds(now_s, gps_live, wheel_live)
+        self._speed = self._select_speed(gps_live, wheel_live)
+        live_any = gps_live or wheel_live
         no_speed = self._speed is None and live_any
         if no_speed and not self.no_speed:
             notices.append(Notice(kind="fault", source=self.source,
@@ -447,13 +459,13 @@ class MotionPlausibility:
             self.reasons.pop(track.name, None)
         return []
 
-    def _cross_check_speeds(self, now_s: float) -> list[Notice]:
-        """GPS/INS against wheel speed, wheel slip told apart by the IMU (module docstring)."""
+    def _cross_check_speeds(self, now_s: float, gps_live: bool, wheel_live: bool) -> list[Notice]:
+        """GPS/INS against wheel speed, wheel slip told apart by the IMU (module docstring);
+        ``gps_live``, ``wheel_live``: each source's liveness this period."""
         cfg = self.config
         gps, wheel, imu = self.gps_track, self.wheel_track, self.imu_track
         vg, vw = self._now_speed(gps), self._now_speed(wheel)
-        if (vg is None or vw is None or not gps.live(now_s, cfg.timeout_s)
-                or not wheel.live(now_s, cfg.timeout_s) or not wheel.trusted):
+        if (vg is None or vw is None or not gps_live or not wheel_live or not wheel.trusted):
             self.gps_reads_low = self.wheel_slipping = False
             self._agree_at, self._disagree_since_s, self._cross_s = None, None, None
             return []
@@ -495,11 +507,12 @@ class MotionPlausibility:
                               f"more than {bound:.2f} m/s for {cfg.speed_disagree_confirm_s:.2f} "
                               f"s; the IMU backs {backs}; the higher reading is used")]
 
-    def _select_speed(self, now_s: float) -> float | None:
+    def _select_speed(self, gps_live: bool, wheel_live: bool) -> float | None:
         """The GPS/INS speed, else the wheels'; the wheels' while the GPS/INS reads lower than
         they do beyond the agreement band and they are not slipping (issue 30)."""
-        live = [self._now_speed(t) for t in (self.gps_track, self.wheel_track)
-                if t.trusted and t.live(now_s, self.config.timeout_s)]
+        live = [self._now_speed(t) for t, is_live in ((self.gps_track, gps_live),
+                                                      (self.wheel_track, wheel_live))
+                if t.trusted and is_live]
         if not live:
             return None
         if self.gps_reads_low and len(live) == 2:
@@ -507,38 +520,41 @@ class MotionPlausibility:
         return live[0]
 
     def _update_progress(self, now_s: float) -> None:
+        """Progress per direction from the trusted odometers (every period: no dicts built but
+        the result, each float computed as ``d * (value - base)`` then ``committed + best``)."""
         cfg = self.config
-        values = {"gps_ins": self.gps_odo_signed_m, "wheel_speed": self.wheel_odo_m}
-        tracks = {"gps_ins": self.gps_track, "wheel_speed": self.wheel_track}
+        gps_m, wheel_m = self.gps_odo_signed_m, self.wheel_odo_m
         base = self._base
         # untrusted sources count only when no source is trusted (then the largest is kept:
         # conservative); a trusted one never lets an untrusted one's jump or freeze count
-        any_trusted = any(t.trusted and t.last is not None for t in tracks.values())
-        for name, track in tracks.items():
+        any_trusted = any(t.trusted and t.last is not None for t in self._speed_tracks)
+        for name, track, value in (("gps_ins", self.gps_track, gps_m),
+                                   ("wheel_speed", self.wheel_track, wheel_m)):
             ok = track.last is not None and (track.trusted or not any_trusted)
             if not ok:
                 base[name] = None
             elif base[name] is None:
-                base[name] = values[name]
+                base[name] = value
+        gps_base, wheel_base = base["gps_ins"], base["wheel_speed"]
+        committed = self._committed
         progress = {}
         for d in (1, -1):
-            deltas = {n: d * (values[n] - b) for n, b in base.items() if b is not None}
-            best = deltas.get("gps_ins")
-            wheel = deltas.get("wheel_speed")
+            best = d * (gps_m - gps_base) if gps_base is not None else None
+            wheel = d * (wheel_m - wheel_base) if wheel_base is not None else None
             # the wheel counts when it says more than the GPS/INS by more than its own noise
             # (else its noise alone would be taken whenever it happens to be the larger)
             if wheel is not None and (best is None or wheel > best + cfg.wheel_noise_m):
                 best = wheel
-            progress[d] = self._committed[d] + (best if best is not None else 0.0)
+            progress[d] = committed[d] + (best if best is not None else 0.0)
         self._progress = progress
         if self._block_start_s is None:
             self._block_start_s = now_s
         elif now_s - self._block_start_s >= cfg.block_s - 1e-9:
             self._committed = dict(progress)
+            values = {"gps_ins": gps_m, "wheel_speed": wheel_m}
             for name in base:
                 if base[name] is not None:
                     base[name] = values[name]
             self._block_start_s = now_s
-
 
 __all__ = ["MotionPlausibility", "PlausibilityConfig", "PlausibilityFault", "plausibility_config"]
