@@ -50,11 +50,11 @@ FAULT_MESSAGES: dict[ActuatorFault, str] = {
     ActuatorFault.THROTTLE_STUCK_CLOSED: "throttle stuck at {actual_pct:.1f} % (commanded "
                                          "{command_pct:.1f} %): engine cut, emergency stop",
     ActuatorFault.BRAKE_NOT_APPLYING: "brake stuck at {actual_pct:.1f} % (commanded "
-                                      "{command_pct:.1f} %): engine cut, emergency stop",
+                                      "{command_pct:.1f} %): emergency stop, secondary braking",
     ActuatorFault.BRAKE_WEAK: "brake gives {ratio:.0%} of the expected deceleration: envelope "
                               "tightened",
     ActuatorFault.BRAKE_FAILED: "brake gives {ratio:.0%} of the expected deceleration, too little "
-                                "to hold a 15 % grade: engine cut, emergency stop",
+                                "to hold a 15 % grade: emergency stop, secondary braking",
     ActuatorFault.STEERING_STUCK: "steering stuck at {actual_pct:.1f} % (commanded "
                                   "{command_pct:.1f} %), driving curvature {curvature_1pm:.3f} "
                                   "1/m: stopping",
@@ -63,7 +63,12 @@ FAULT_MESSAGES: dict[ActuatorFault, str] = {
 
 CUTS_ENGINE = frozenset({ActuatorFault.THROTTLE_STUCK_OPEN, ActuatorFault.THROTTLE_STUCK_CLOSED,
                          ActuatorFault.BRAKE_NOT_APPLYING, ActuatorFault.BRAKE_FAILED})
-"""Faults after which the speed loop cannot be trusted: engine off and emergency stop."""
+"""Faults after which the speed loop cannot be trusted: engine off and emergency stop (a lost
+brake keeps the engine running while it brakes the moving vehicle: ``BRAKE_LOST``)."""
+
+BRAKE_LOST = frozenset({ActuatorFault.BRAKE_NOT_APPLYING, ActuatorFault.BRAKE_FAILED})
+"""The service brake lost (issue 30 item 4): the speed server brakes with what the vehicle has
+left (``dynamics.secondary_braking``) and asks the safety driver to take over."""
 
 
 def fault_message(code: ActuatorFault, **details: float) -> str:
@@ -325,6 +330,11 @@ class PedalMonitor:
         self.reported: set[str] = set()   # pedals whose stuck onset was reported
         self.cut = False   # latched: an actuator the speed loop relies on does not follow
 
+    @property
+    def cut_throttle(self) -> bool:
+        """A throttle stuck onset was reported: the engine must be cut (no engine braking)."""
+        return "THROTTLE" in self.reported
+
     def set_status_period(self, period_s: float) -> None:
         """The vehicle status's period as measured from its receipts: a position repeats for a
         period, so "still" needs ``hold_periods`` of them (never less than ``hold_s``)."""
@@ -425,6 +435,6 @@ class SteeringMonitor:
         return None
 
 
-__all__ = ["CUTS_ENGINE", "FAULT_MESSAGES", "ActuatorFault", "ActuatorMonitorConfig",
+__all__ = ["BRAKE_LOST", "CUTS_ENGINE", "FAULT_MESSAGES", "ActuatorFault", "ActuatorMonitorConfig",
            "BrakeApplyCheck", "BrakeProbe", "BrakeResponse", "Finding", "FollowCheck", "PedalMonitor",
            "SteeringMonitor", "brake_ratio", "fault_message"]
