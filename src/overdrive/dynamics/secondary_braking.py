@@ -35,6 +35,16 @@ def engine_brake_factor(throttle: float, along_mps: float) -> float:
     return closed * min(max(along_mps, 0.0) / ENGINE_BRAKE_FADE_MPS, 1.0)
 
 
+def engine_brake_mps2(gear: Gear, throttle: float, along_mps: float,
+                      engine_running: bool = True) -> float:
+    """The engine braking deceleration in ``gear`` at this throttle (0..1) and speed along the
+    gear's direction, as the plant gives it (0 with the engine off or out of gear): the
+    brake checks and the actuator model take it out of what they credit to the brake."""
+    if not engine_running or gear.direction == 0:
+        return 0.0
+    return gear.engine_brake_decel_mps2 * engine_brake_factor(throttle, along_mps)
+
+
 def secondary_gear(params: VehicleParams, gear: Gear, speed_mps: float) -> Gear:
     """The gear that brakes hardest at ``speed_mps`` (magnitude): the current one, or on a gearbox
     that may shift while moving a gear of the same direction whose top speed exceeds the speed
@@ -112,4 +122,5 @@ def secondary_stop_m(params: VehicleParams, speed_mps: float, gear: Gear, *,
 
 
 __all__ = ["ENGINE_BRAKE_CLOSED_THROTTLE", "ENGINE_BRAKE_FADE_MPS", "engine_brake_factor",
+           "engine_brake_mps2",
            "has_engine_braking", "secondary_gear", "secondary_stop_m"]

@@ -200,11 +200,12 @@ class BrakeApplyCheck(FollowCheck):
 
 
 def brake_ratio(params: VehicleParams, direction: int, speed_mps: float, accel_x_mps2: float,
-                pitch_rad: float, brake_pct: float) -> float | None:
+                pitch_rad: float, brake_pct: float, engine_brake_mps2: float = 0.0) -> float | None:
     """Achieved / predicted deceleration of ``brake_pct`` (None: no usable sample).
 
-    ``accel_x_mps2`` is the IMU's specific force (no gravity in it); rolling resistance and drag
-    are taken out, so the grade needs no model (the adaptive model's formula).
+    ``accel_x_mps2`` is the IMU's specific force (no gravity in it); rolling resistance, drag
+    and the engine braking of the gear (``engine_brake_mps2``, issue 30 item 4) are taken out,
+    so the grade needs no model (the adaptive model's formula).
     """
     v_along = direction * speed_mps
     predicted = brake_pct * 0.01 * params.max_brake_decel_mps2
@@ -212,7 +213,8 @@ def brake_ratio(params: VehicleParams, direction: int, speed_mps: float, accel_x
         return None
     cos_pitch = math.cos(pitch_rad)
     losses = (params.rolling_resistance * G_MPS2 * cos_pitch
-              + 0.5 * AIR_DENSITY_KGPM3 * params.drag_area_m2 * v_along * v_along / params.mass_kg)
+              + 0.5 * AIR_DENSITY_KGPM3 * params.drag_area_m2 * v_along * v_along / params.mass_kg
+              + engine_brake_mps2)
     return (-direction * accel_x_mps2 - losses) / predicted
 
 
@@ -345,7 +347,7 @@ class PedalMonitor:
     def update(self, dt_s: float, *, armed: bool, throttle_cmd_pct: float, brake_cmd_pct: float,
                throttle_pct: float, brake_pct: float, direction: int, speed_mps: float,
                accel_x_mps2: float | None, pitch_rad: float, slipping: bool,
-               sample_response: bool = True) -> list[Finding]:
+               sample_response: bool = True, engine_brake_mps2: float = 0.0) -> list[Finding]:
         """One new vehicle status (``dt_s`` since the last one): the commands sent last period
         and the positions it reports; new onsets. Step it only on a new status: a repeated one
         would count as an actuator standing still.
@@ -380,7 +382,7 @@ class PedalMonitor:
                 and direction * speed_mps >= cfg.min_speed_mps
                 and brake_pct * 0.01 * self.params.max_brake_decel_mps2 >= cfg.min_predicted_mps2):
             ratio = brake_ratio(self.params, direction, speed_mps, accel_x_mps2, pitch_rad,
-                                brake_pct)
+                                brake_pct, engine_brake_mps2)
             for code in self.response.update(dt_s, ratio) if ratio is not None else ():
                 self.cut |= code in CUTS_ENGINE
                 found.append(Finding(code, fault_message(code, ratio=self.response.ratio)))

@@ -55,7 +55,11 @@ from typing import Any
 import msgspec
 
 from overdrive.dynamics.control import MAX_CONTROL_STEP_S, first_order_lag
-from overdrive.dynamics.secondary_braking import has_engine_braking, secondary_gear
+from overdrive.dynamics.secondary_braking import (
+    engine_brake_mps2,
+    has_engine_braking,
+    secondary_gear,
+)
 from overdrive.dynamics.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -607,7 +611,10 @@ class SpeedServer:
             speed_mps=self.speed_mps,
             accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
-            slipping=status.traction_control, sample_response=not self.sensor_lost)
+            slipping=status.traction_control, sample_response=not self.sensor_lost,
+            engine_brake_mps2=engine_brake_mps2(
+                gear, status.throttle_pct * 0.01, self.speed_mps * gear.direction,
+                status.engine == "running") if gear is not None else 0.0)
         for finding in findings:
             self._raise_fault(now_s, int(finding.code), finding.message, out)
             if finding.code in BRAKE_LOST and not self.brake_lost:
