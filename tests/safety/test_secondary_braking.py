@@ -16,13 +16,21 @@ from overdrive.dynamics.secondary_braking import (
     secondary_gear,
     secondary_stop_m,
 )
-from overdrive.dynamics.vehicle_params import G_MPS2, VehicleSpecError, with_overrides
+from overdrive.dynamics.vehicle_params import (
+    G_MPS2,
+    VehicleSpecError,
+    vehicle_from_data,
+    vehicle_to_data,
+    with_overrides,
+)
+from overdrive.messages import PowertrainCommand
 from overdrive.run.sim import run_scenario
 from overdrive.run.sweep import unavoidable_cause
 from overdrive.scenario.schema import ScenarioError, parse_scenario
 from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers import speed as speed_module
 from overdrive.vehicle.plant import ActuatorFaults, Plant, World
+from overdrive.vehicle.xgv_client import XgvClient
 from tests.conftest import PRESET_NAMES
 
 DT_S = 0.01
@@ -49,7 +57,6 @@ def test_parking_brake_survival_must_be_a_boolean(field: str, value: Any) -> Non
 @pytest.mark.parametrize(("value", "ok"), [(0.0, True), (5.0, True), (5.0001, False),
                                            (-1e-9, False), (math.nan, False)])
 def test_engine_braking_per_gear_is_bounded(value: float, ok: bool) -> None:
-    from overdrive.dynamics.vehicle_params import vehicle_from_data, vehicle_to_data
     data = vehicle_to_data(PRESETS["escape-hybrid"])
     data["gears"] = [dict(g) for g in data["gears"]]
     data["gears"][3]["engine_brake_decel_mps2"] = value
@@ -289,3 +296,15 @@ def test_a_parking_brake_fault_in_a_scenario_is_validated() -> None:
     for bad in ({"failed": 1}, {"broken": True}, {"failed": "yes"}):
         with pytest.raises(ScenarioError):
             parse_scenario({**base, "events": [{"at_s": 0.1, "actuator": {"park_brake": bad}}]})
+
+
+@pytest.mark.parametrize("park_brake", [False, True])
+def test_the_parking_brake_command_reaches_the_xgv_as_its_flag(park_brake: bool) -> None:
+    """Over JAUS the powertrain's parking brake is bit 0 of Set Discrete Devices'
+    parking_horn_flags (vehicle/xgv_client.py), which the simulated XGV applies to the plant."""
+    client = XgvClient(PRESETS["escape-hybrid"])
+    client.powertrain = PowertrainCommand(gear="low", engine_on=True, park_brake=park_brake,
+                                          source="speed")
+    message = client._discrete_command(0.0)
+    assert message is not None
+    assert message.parking_horn_flags & 1 == int(park_brake)
