@@ -764,9 +764,9 @@ class SpeedServer:
         if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
             self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
             return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
-                    msgspec.structs.replace(powertrain, park_brake=True))
+                    msgspec.structs.replace(powertrain, park_brake=park_ok))
         if hold.mode == "park":    # hill start (throttle building) or auto-hold at a standstill
-            powertrain = msgspec.structs.replace(powertrain, park_brake=True)
+            powertrain = msgspec.structs.replace(powertrain, park_brake=park_ok)
         probe = self._brake_probe(dt_s, result, target, v_g, direction, pitch, status)
         if probe is not None:
             return probe, powertrain

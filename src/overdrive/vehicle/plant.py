@@ -13,7 +13,7 @@ Model (SI units, x forward along the heading):
   ``m * a_engine(gear) * f(throttle, v)`` with the engine running, in gear, not shifting, at
   closed throttle (``engine_brake_factor``); the parking brake on a moving vehicle
   ``level * m * a_park``, ``level`` ramping 0..1 over ``park_brake_apply_s`` while applied
-  (and back when released). Both join the brake force inside the friction ellipse. A
+  (0 at once when released). Both join the brake force inside the friction ellipse. A
   scenario may fail the parking brake (``park_brake_failed``); a stuck service-brake actuator
   or weak service hydraulics take it with them unless the vehicle file says it survives them.
 - Rolling resistance ``C_rr * m * g * cos(pitch)``; drag ``0.5 * rho * CdA * v * |v|``;
@@ -221,9 +221,11 @@ class Plant:
         faults = self.faults
         self._powertrain(dt_s, gear_cmd, engine_on)
         self.park_brake = park_brake
-        ramp = dt_s / p.park_brake_apply_s
-        self.park_brake_level = (min(self.park_brake_level + ramp, 1.0) if park_brake
-                                 else max(self.park_brake_level - ramp, 0.0))
+        # applied: a ramp over park_brake_apply_s; released: at once (a simplification: the
+        # direction hold releases it as the drive builds, and a drag on the launch after an
+        # auto-hold is not what the vehicle files describe)
+        self.park_brake_level = (min(self.park_brake_level + dt_s / p.park_brake_apply_s, 1.0)
+                                 if park_brake else 0.0)
         park_share = self._park_brake_share()
 
         # actuators
