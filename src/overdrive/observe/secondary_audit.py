@@ -45,6 +45,11 @@ DISTANCE_TOLERANCE_M = 0.5
 the integration of the two models at 10 ms, and a stop decided by the filtered speed
 (engineering bound; the tests show the margin used)."""
 STOPPED_MPS = 0.01
+ENGINE_OWED_MPS = 0.2
+"""Engine braking is owed above this true speed: the speed server cuts the engine once its
+filtered speed is under 0.1 m/s (standstill), which a stopping vehicle's true speed leads by
+up to ~0.1 m/s; below it engine braking gives under a fifth of its figure (it fades below
+1 m/s) anyway."""
 
 
 class SecondaryBrakingAudit:
@@ -124,7 +129,8 @@ class SecondaryBrakingAudit:
     def _check_means(self, now_s: float, speed: float) -> None:
         p = self.params
         assert self.target is not None and self.start is not None
-        engine_brakes = (has_engine_braking(p, self.target, speed) and not self.throttle_failed)
+        engine_brakes = (has_engine_braking(p, self.target, speed) and not self.throttle_failed
+                         and speed > ENGINE_OWED_MPS)
         self._owe("engine braking", engine_brakes, self.engine_cmd, now_s,
                   f"engine cut while moving at {speed:.2f} m/s")
         downshift = self.target.name != self.start["gear"] and not self.throttle_failed
