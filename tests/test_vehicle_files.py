@@ -65,9 +65,9 @@ REFERENCE: dict[str, VehicleParams] = {
         idle_rpm=800.0, redline_rpm=5500.0,
         gears=(
             Gear("park", 0, 0.0, 0.0, holds=True),
-            Gear("reverse", -1, 9.0, 5000.0, engine_brake_decel_mps2=0.3),
+            Gear("reverse", -1, 9.0, 5000.0),
             Gear("neutral", 0, 0.0, 0.0),
-            Gear("drive", 1, 45.0, 5200.0, engine_brake_decel_mps2=0.3),
+            Gear("drive", 1, 45.0, 5200.0),
             Gear("low", 1, 20.0, 6000.0, engine_brake_decel_mps2=1.0),
         ),
         park_gear="park", drive_gear="drive", low_gear="low", reverse_gear="reverse",

@@ -161,7 +161,7 @@ def coasting(preset: str, gear: str, speed_mps: float, park_brake: bool = False,
     return plant
 
 
-@pytest.mark.parametrize(("gear", "decel"), [("drive", 0.3), ("low", 1.0), ("neutral", 0.0)])
+@pytest.mark.parametrize(("gear", "decel"), [("drive", 0.0), ("low", 1.0), ("neutral", 0.0)])
 def test_plant_engine_braking_per_gear(gear: str, decel: float) -> None:
     p = PRESETS["escape-hybrid"]
     plant = coasting("escape-hybrid", gear, 8.0, seconds=0.02)
