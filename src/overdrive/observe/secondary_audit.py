@@ -46,7 +46,7 @@ the integration of the two models at 10 ms, and a stop decided by the filtered s
 (engineering bound; the tests show the margin used)."""
 STOPPED_MPS = 0.01
 ENGINE_OWED_MPS = 0.2
-"""Engine braking is owed above this true speed: the speed server cuts the engine once its
+"""Engine braking (and the downshift for it) is owed above this true speed: the speed server cuts the engine once its
 filtered speed is under 0.1 m/s (standstill), which a stopping vehicle's true speed leads by
 up to ~0.1 m/s; below it engine braking gives under a fifth of its figure (it fades below
 1 m/s) anyway."""
@@ -133,7 +133,8 @@ class SecondaryBrakingAudit:
                          and speed > ENGINE_OWED_MPS)
         self._owe("engine braking", engine_brakes, self.engine_cmd, now_s,
                   f"engine cut while moving at {speed:.2f} m/s")
-        downshift = self.target.name != self.start["gear"] and not self.throttle_failed
+        downshift = (self.target.name != self.start["gear"] and not self.throttle_failed
+                     and speed > ENGINE_OWED_MPS)
         self._owe("downshift", downshift, self.gear_cmd is self.target, now_s,
                   f"gear {self.gear_cmd.name if self.gear_cmd else '?'} instead of "
                   f"{self.target.name}")
