@@ -15,9 +15,11 @@ DT_S = 0.01
 
 
 def ideal(params: VehicleParams) -> VehicleParams:
-    """No drag, no rolling resistance, instant brakes: the closed-form braking assumptions."""
+    """No drag, no rolling resistance, no engine braking, instant brakes: the closed-form
+    braking assumptions."""
+    gears = tuple(msgspec.structs.replace(g, engine_brake_decel_mps2=0.0) for g in params.gears)
     return msgspec.structs.replace(params, rolling_resistance=0.0, drag_area_m2=0.0,
-                                   brake_lag_s=1e-6)
+                                   brake_lag_s=1e-6, gears=gears)
 
 
 def moving_plant(params: VehicleParams, speed_mps: float, world: World | None = None) -> Plant:

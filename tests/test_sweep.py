@@ -122,32 +122,39 @@ def test_fault_sweep_has_no_avoidable_violation(fault_sweep) -> None:
     assert len(report["unavoidable"]) == len(report["violating_runs"])
 
 
-ESTOP = {"kind": "estop", "source": "speed"}
+ESTOP = {"kind": "estop", "source": "speed", "code": "1133"}
 BRAKE_STUCK = {"kind": "fault", "source": "speed", "code": "1133"}
+TAKEOVER = {"kind": "takeover", "source": "speed", "code": "1133"}
+REACTED = [ESTOP, BRAKE_STUCK, TAKEOVER]
+USED = {"all_used": True, "within": True, "allowed_m": 20.0, "distance_m": 19.5}
+NO_STOP = {"all_used": True, "within": False, "allowed_m": None, "distance_m": None}
 
 
-@pytest.mark.parametrize(("fault", "rules", "events", "engine", "unavoidable"), [
-    ("brake_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "off", True),
-    ("brake_stuck", ["authorization", "contact"], [ESTOP, BRAKE_STUCK], "off", True),
-    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "code": "1136"}], "off", True),
-    ("brake_stuck", ["authorization"], [ESTOP], "off", False),                 # no fault reported
-    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "code": "1131"}], "off", False),
-    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "source": "move"}], "off", False),
-    ("brake_stuck", ["authorization"], [{**ESTOP, "source": "move"}, BRAKE_STUCK], "off", False),
-    ("brake_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "running", False),   # engine not cut
-    ("brake_stuck", ["authorization"], [BRAKE_STUCK], "off", False),          # no emergency stop
-    ("brake_stuck", ["speed"], [ESTOP, BRAKE_STUCK], "off", True),            # coasting downhill
-    ("brake_stuck", ["direction"], [ESTOP, BRAKE_STUCK], "off", False),       # a rule it could meet
-    ("throttle_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], "off", False),
-    (None, ["authorization"], [ESTOP, BRAKE_STUCK], "off", False),
-    ("brake_stuck", [], [ESTOP, BRAKE_STUCK], "off", False),                  # nothing to excuse
+@pytest.mark.parametrize(("fault", "rules", "events", "audit", "unavoidable"), [
+    ("brake_stuck", ["authorization"], REACTED, USED, True),
+    ("brake_stuck", ["authorization", "contact"], REACTED, USED, True),
+    ("brake_stuck", ["authorization"], [{**e, "code": "1136"} for e in REACTED], USED, True),
+    ("brake_stuck", ["speed"], REACTED, NO_STOP, True),             # coasting down a steep grade
+    ("brake_stuck", ["authorization"], [ESTOP, TAKEOVER], USED, False),       # no fault reported
+    ("brake_stuck", ["authorization"], [ESTOP, BRAKE_STUCK], USED, False),    # no takeover request
+    ("brake_stuck", ["authorization"], [BRAKE_STUCK, TAKEOVER], USED, False),  # no emergency stop
+    ("brake_stuck", ["authorization"], [{**e, "code": "1131"} for e in REACTED], USED, False),
+    ("brake_stuck", ["authorization"], [ESTOP, {**BRAKE_STUCK, "source": "move"}, TAKEOVER], USED,
+     False),
+    ("brake_stuck", ["authorization"], REACTED, None, False),                 # no audit
+    ("brake_stuck", ["authorization"], REACTED, {**USED, "all_used": False}, False),  # a means unused
+    ("brake_stuck", ["authorization"], REACTED, {**USED, "within": False}, False),    # stopped too late
+    ("brake_stuck", ["direction"], REACTED, USED, False),       # a rule it could meet
+    ("throttle_stuck", ["authorization"], REACTED, USED, False),
+    (None, ["authorization"], REACTED, USED, False),
+    ("brake_stuck", [], REACTED, USED, False),                  # nothing to excuse
 ])
-def test_a_violation_is_unavoidable_only_after_the_required_reaction(fault, rules, events, engine,
+def test_a_violation_is_unavoidable_only_after_the_required_reaction(fault, rules, events, audit,
                                                                     unavoidable) -> None:
     from overdrive.run.sweep import BRAKE_LOST_CODES, unavoidable_cause
     from overdrive.safety.actuators import ActuatorFault
 
     assert {str(int(ActuatorFault.BRAKE_NOT_APPLYING)),
                                 str(int(ActuatorFault.BRAKE_FAILED))} == BRAKE_LOST_CODES
-    summary = {"events": events, "final": {"engine": engine}}
+    summary = {"events": events, "final": {"engine": "off"}, "secondary_braking": audit}
     assert (unavoidable_cause(fault, rules, summary) is not None) is unavoidable

@@ -68,7 +68,7 @@ REFERENCE: dict[str, VehicleParams] = {
             Gear("reverse", -1, 9.0, 5000.0),
             Gear("neutral", 0, 0.0, 0.0),
             Gear("drive", 1, 45.0, 5200.0),
-            Gear("low", 1, 20.0, 6000.0),
+            Gear("low", 1, 20.0, 6000.0, engine_brake_decel_mps2=1.0),
         ),
         park_gear="park", drive_gear="drive", low_gear="low", reverse_gear="reverse",
         shift_time_s=0.5, shift_only_stopped=False, crank_time_s=1.2,
@@ -78,6 +78,8 @@ REFERENCE: dict[str, VehicleParams] = {
         skidpad_lat_g=0.74,
         stopping_distance_60mph_m=41.0,
         max_pitch_rad=math.atan(0.30),
+        # issue 30 item 4 (added since): engine braking above, the parking brake here
+        park_brake_decel_mps2=2.44, park_brake_apply_s=1.0, park_brake_max_apply_mps=10.0,
     ),
     "ranger-6x6": VehicleParams(
         preset="ranger-6x6",
@@ -103,6 +105,8 @@ REFERENCE: dict[str, VehicleParams] = {
         skidpad_lat_g=0.55,
         stopping_distance_60mph_m=60.0,
         max_pitch_rad=math.atan(0.35),
+        # issue 30 item 4 (added since): the parking brake (no engine braking)
+        park_brake_decel_mps2=2.0, park_brake_apply_s=1.5, park_brake_max_apply_mps=25.0 * MPH,
     ),
 }
 

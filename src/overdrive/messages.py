@@ -245,6 +245,8 @@ class SpeedState(Message, frozen=True):
                                    # increase, so a lost SpeedState cannot hide one
     started_s: float = 0.0         # this server's first step: a change is a restart (no latch
                                    # survives it), which clients treat as an unasked stop
+    takeover: bool = False         # the safety driver must take over (the service brake lost:
+                                   # issue 30 item 4); latched for the server's life
 
 
 # --------------------------------------------------------------------------- actuators

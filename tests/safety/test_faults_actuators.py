@@ -92,13 +92,16 @@ def test_throttle_stuck_at_cruise_on_a_grade(preset: str, grade_percent: float) 
 @pytest.mark.parametrize("stuck_s", [3.0, 5.0, 8.0])
 def test_brake_stuck_released_ends_in_an_estop_with_the_engine_cut(preset: str,
                                                                    stuck_s: float) -> None:
-    """No brakes: the overrun may be physically unavoidable; the e-stop, the engine cut and the
-    fault are required."""
+    """No service brake: the e-stop, the fault, the takeover request and the engine cut (once
+    stopped: engine braking keeps it running while moving) are required; the secondary brakes
+    (tests/safety/test_secondary_braking.py) stop it, any overrun is judged by the audit."""
     result = run(vehicle=preset, duration_s=40, events=[
         move(60, 8), {"at_s": stuck_s, "actuator": {"brake": {"stuck": True}}}])
     assert len(faults(result, ActuatorFault.BRAKE_NOT_APPLYING)) == 1
     assert any(e["kind"] == "estop" and e.get("source") == "speed" for e in result.summary["events"])
+    assert any(e["kind"] == "takeover" for e in result.summary["events"])
     assert result.trace[-1]["engine"] == "off"
+    assert final_speed(result) < 0.05
     assert rules(result) <= {"authorization"}, result.summary["violations"]
 
 

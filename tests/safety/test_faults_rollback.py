@@ -308,8 +308,12 @@ def without_hold(monkeypatch) -> None:
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("kind", ["move", "reverse"])
 def test_flat_runs_are_unchanged_by_the_hold(preset: str, kind: str, monkeypatch) -> None:
-    """Flat ground: the hold never acts (the same trace without it; the auto-hold's parking
-    brake holds a vehicle the standstill brake already holds)."""
+    """Flat ground: the hold never acts (the same commands without it; the auto-hold's parking
+    brake holds a vehicle the standstill brake already holds). Set once the server sees a
+    standstill (filtered speed under 0.1 m/s), it brakes the last few cm/s of a stop now that
+    the plant's parking brake acts on a moving vehicle (issue 30 item 4): measured 0.2 mm,
+    0.0052 m/s and a brake command 0.03 % apart on the Escape's reverse, 0.13 % on the
+    Ranger's; bounded here by 1 mm, 0.01 m/s and 0.5 %, the same throttle and gears."""
     track, t0_s = track_first(kind)
     speed_mps = 3.0 if kind == "move" else REVERSE_MPS
     events = track + shifted([{"at_s": 0.5, kind: {"distance_m": 15, "maxspeed_mps": speed_mps,
@@ -321,9 +325,14 @@ def test_flat_runs_are_unchanged_by_the_hold(preset: str, kind: str, monkeypatch
     assert with_hold.summary["violations"] == []
     x0 = float(next(r["x_m"] for r in with_hold.trace if float(r["t_s"]) >= t0_s))
     assert abs(float(with_hold.trace[-1]["x_m"]) - x0) > 10.0    # driven, not refused
-    fields = ("x_m", "speed_mps", "throttle_cmd_pct", "brake_cmd_pct", "gear")
+    fields = ("throttle_cmd_pct", "gear")
     assert [[r[f] for f in fields] for r in with_hold.trace] == \
         [[r[f] for f in fields] for r in without.trace]
+    assert len(with_hold.trace) == len(without.trace)
+    for held, free in zip(with_hold.trace, without.trace, strict=True):
+        assert abs(float(held["brake_cmd_pct"]) - float(free["brake_cmd_pct"])) <= 0.5, held["t_s"]
+        assert abs(float(held["x_m"]) - float(free["x_m"])) <= 0.001, held["t_s"]
+        assert abs(float(held["speed_mps"]) - float(free["speed_mps"])) <= 0.01, held["t_s"]
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

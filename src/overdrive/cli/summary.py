@@ -31,7 +31,23 @@ def print_summary(summary: dict, out: Path) -> None:
         ("events", str(len(summary["events"]))),
         ("violations", "none" if not summary["violations"] else "\n".join(summary["violations"])),
     ]
+    takeover = [e for e in summary["events"] if e["kind"] == "takeover"]
+    if takeover:   # the safety driver must drive (issue 30 item 4): first, in bold red
+        rows.insert(0, ("TAKE OVER", f"[bold red]{takeover[0].get('reason', '')} "
+                                     f"(t={takeover[0].get('t_s', 0.0):.2f} s)[/]"))
+    audit = summary.get("secondary_braking")
+    if audit:
+        rows.append(("secondary braking", _secondary(audit)))
     for key, value in rows:
         table.add_row(key, value)
     console.print(table)
     click.echo(f"results: {out}")
+
+
+def _secondary(audit: dict) -> str:
+    """The judge's audit of a stop on a lost service brake, in one line."""
+    distance = "no stop" if audit["distance_m"] is None else f"{audit['distance_m']:.2f} m"
+    allowed = "none possible" if audit["allowed_m"] is None else f"{audit['allowed_m']:.2f} m"
+    missing = ", ".join(audit["missing"]) or "none"
+    return (f"from {audit['speed_mps']:.2f} m/s at {audit['at_s']:.2f} s: {distance} of "
+            f"{allowed} allowed; means unused: {missing}")

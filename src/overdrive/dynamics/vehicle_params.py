@@ -34,6 +34,8 @@ class Gear(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     max_force_n: float      # tractive force at full throttle below the power limit
     holds: bool = False     # park pawl: holds the vehicle like locked brakes
     all_wheel: bool = False  # every wheel driven (Ranger low6wd): full weight available for traction
+    engine_brake_decel_mps2: float = 0.0  # deceleration the engine (or regeneration) gives in this
+                                          # gear at closed throttle, running, above ~1 m/s; 0: none
 
 
 class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
@@ -88,6 +90,17 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     position_step_m: float = 0.25       # a GPS/INS position step beyond what the speed explains
     position_step_sigmas: float = 6.0   # ... and this many of the receiver's sigmas, is a fault
     heading_step_rad: float = 0.05      # a GPS/INS heading step beyond what the gyro explains
+    # secondary braking (issue 30 item 4; dynamics.secondary_braking): what is left when the
+    # service brake fails. Defaults: no parking brake usable while moving
+    park_brake_decel_mps2: float = 0.0  # deceleration the parking brake gives a moving vehicle
+                                        # (fully applied, dry); 0: none, or none by wire
+    park_brake_apply_s: float = 1.0     # released to fully applied (a linear ramp)
+    park_brake_max_apply_mps: float = 0.0   # the stack applies it while moving only at or below
+                                            # this speed (rear wheels locking at speed: instability)
+    park_brake_survives_hydraulic: bool = True   # it still works with the service brake's
+                                                 # hydraulics failed (weak brake: its force scales)
+    park_brake_survives_actuator: bool = True    # it still works with the service brake's
+                                                 # by-wire actuator stuck (its own actuator)
 
     @property
     def front_overhang_m(self) -> float:
@@ -184,6 +197,11 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "position_step_m": (0.01, 100.0, "RTK ~0.02 m noise to standalone GPS ~5 m"),
     "position_step_sigmas": (3.0, 100.0, "a step is at least 3 sigma of the reported noise"),
     "heading_step_rad": (0.001, 3.2, "INS heading noise ~0.002-0.02 rad"),
+    "park_brake_decel_mps2": (0.0, 10.0, "0: none; a parking brake on one axle gives at most "
+                                         "that axle's share of ~1 g"),
+    "park_brake_apply_s": (0.01, 10.0, "electric parking brakes ~0.5-1 s, a lever actuator a "
+                                       "few seconds"),
+    "park_brake_max_apply_mps": (0.0, 70.0, "0: only at rest; up to the fastest speed driven"),
 }
 """Physically plausible range of every number a scenario may override (docs/scenarios.md)."""
 
@@ -194,6 +212,8 @@ GEAR_RANGES: dict[str, tuple[float, float, str]] = {
                                   "vehicle this stack drives"),
     "max_force_n": (0.0, 1_000_000.0, "force at the wheels: a car ~5 kN, a 44 t truck in its "
                                       "lowest gear ~200 kN"),
+    "engine_brake_decel_mps2": (0.0, 5.0, "closed-throttle retardation: a car's engine ~0.3-1 "
+                                          "m/s^2, a truck's exhaust brake ~1-2; 5 is ~0.5 g"),
 }
 """Plausible range of each number of a gear in a vehicle file."""
 
@@ -214,9 +234,16 @@ SENSOR_CHECKS: tuple[str, ...] = (
 """The sensor cross-checks' thresholds (issue 30): the shipped files state them; a file written
 before them gets the defaults above (RTK-grade GPS/INS, 0.02 m/s speed noise)."""
 
-OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob", *SENSOR_CHECKS})
-"""Simulation knobs (failed crank attempts, 0 unless stated) and the sensor cross-checks'
-thresholds (defaults unless stated): every other field is required."""
+SECONDARY_BRAKING: tuple[str, ...] = (
+    "park_brake_decel_mps2", "park_brake_apply_s", "park_brake_max_apply_mps",
+    "park_brake_survives_hydraulic", "park_brake_survives_actuator")
+"""The parking brake's parameters (issue 30 item 4): the shipped files state them; a file
+written before them gets the defaults above (no parking brake usable while moving)."""
+
+OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob", *SENSOR_CHECKS,
+                              *SECONDARY_BRAKING})
+"""Simulation knobs (failed crank attempts, 0 unless stated), the sensor cross-checks'
+thresholds and the parking brake (defaults unless stated): every other field is required."""
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 _FIELD_TYPES: dict[str, Any] = {f.name: f.type for f in msgspec.structs.fields(VehicleParams)}
@@ -370,7 +397,8 @@ def vehicle_from_data(data: Any) -> VehicleParams:
 
 def _gears_from_data(value: Any) -> list[dict[str, Any]]:
     """The gear table: a list of ``{name, direction, max_speed_mps, max_force_n}`` (``holds``
-    and ``all_wheel`` false unless given), names unique, a driving gear able to drive."""
+    and ``all_wheel`` false, ``engine_brake_decel_mps2`` 0 unless given), names unique, a
+    driving gear able to drive."""
     if not isinstance(value, list) or not value:
         raise VehicleSpecError("gears", "must be a list of gears, each {name, direction, "
                                         f"max_speed_mps, max_force_n}}, got {_show(value)}")

@@ -51,6 +51,10 @@ Rules (docs/reliability.md, docs/safety-case.md):
 While a human drives (manual override, emergency manual override, partial manual speed) rules
 1-3 are suspended and earlier authorizations are void: the stack does not hold the wheel.
 Every violation says which rule, when and by how much.
+
+A stop on a lost service brake is audited apart (``observe.secondary_audit``): whether the
+stack used everything the vehicle has, and the distance that allows (the summary's
+``secondary_braking``; the sweep counts an overrun unavoidable only on its say-so).
 """
 
 from __future__ import annotations
@@ -60,7 +64,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from overdrive.dynamics.vehicle_params import AIR_DENSITY_KGPM3, DRY_MU, G_MPS2, VehicleParams
-from overdrive.messages import SIM_WORLD_TOPIC, Topic
+from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
+from overdrive.observe.secondary_audit import SecondaryBrakingAudit
 from overdrive.vehicle.modes import safety_mode
 
 RULES = ("authorization", "direction", "speed", "unintended_motion", "watchdog", "finite",
@@ -287,7 +292,9 @@ class Monitor:
                           Topic.POWERTRAIN: self._powertrain, Topic.SET_SPEED: self._issued_spss,
                           Topic.NOTICE: self._notice, Topic.VEHICLE_STATUS: self._vehicle_status,
                           Topic.SPEED_STATE: self._speed_state,
-                          Topic.SAFETY: self._safety, SIM_WORLD_TOPIC: self._world}
+                          Topic.SAFETY: self._safety, SIM_WORLD_TOPIC: self._world,
+                          SIM_FAULTS_TOPIC: self._faults_injected}
+        self.secondary = SecondaryBrakingAudit(params)
 
     # ------------------------------------------------------------------ bookkeeping
 
@@ -500,8 +507,13 @@ class Monitor:
     def _powertrain(self, msg: Any) -> None:
         if msg.source not in self.pedal_sources:
             self.rejected_expected += 1
+        self.secondary.powertrain(msg)
+
+    def _faults_injected(self, msg: Any) -> None:
+        self.secondary.fault_injected(msg)
 
     def _notice(self, msg: Any) -> None:
+        self.secondary.notice(msg, self.now_s)
         if msg.kind == "rejected" and msg.code == "no_control":
             self.rejected_seen += 1
         elif msg.kind in ("estop", "fault") and _unasked_notice(msg):
@@ -563,10 +575,13 @@ class Monitor:
         if not self._finite(Topic.TRUTH, truth, TRUTH_FIELDS):
             return
         x, y, h = truth.x_m, truth.y_m, truth.heading_rad
+        ds_m = 0.0
         if self._last_xyh is not None:
             x0, y0, h0 = self._last_xyh
             mid = h0 + 0.5 * math.remainder(h - h0, math.tau)
             self.progress_m += (x - x0) * math.cos(mid) + (y - y0) * math.sin(mid)
+            ds_m = math.hypot(x - x0, y - y0)
+        self.secondary.truth(self.now_s, truth.speed_mps, truth.pitch_rad, ds_m, self.friction)
         self._last_xyh = (x, y, h)
         dt_s = self.period_s if self._last_truth_s is None else self.now_s - self._last_truth_s
         self._last_truth_s = self.now_s

@@ -145,6 +145,7 @@ def add_judgement(summary: dict[str, Any], monitor: Monitor) -> None:
     summary["violation_details"] = monitor.details()
     summary["judge_notes"] = monitor.notes
     summary["stops"] = [{"authorization_margin_m": round(m, 4)} for m in monitor.stop_margins_m]
+    summary["secondary_braking"] = monitor.secondary.result()
 
 
 def clock_report(rec: Recorder) -> dict[str, Any]:

@@ -129,10 +129,13 @@ def sample_scenario(data: dict[str, Any], run: int, base_seed: int, sweep: Sweep
 UNAVOIDABLE: dict[str, frozenset[str]] = {
     "brake_stuck": frozenset({"authorization", "contact", "speed"})}
 """Drawn faults after which these rules may be broken whatever the stack does (issue 16): with
-the brakes stuck released only the engine cut and coasting remain (downhill, gravity speeds the
-coasting vehicle past its limit: the red team's sweep, runs 50 and 68 of seed 91716). Such a run counts as
-unavoidable only if the stack reacted as it must (an emergency stop, the engine cut, a fault
-notice); otherwise, and for any other rule, it is an avoidable violation."""
+the service brake stuck released only what the vehicle has left brakes it (issue 30 item 4:
+engine braking, a downshift, the parking brake; downhill, gravity may beat them: the red team's
+sweep, runs 50 and 68 of seed 91716). Such a run counts as unavoidable only if the stack
+reacted as it must (an emergency stop, a fault notice, a takeover request) and the judge's
+audit (``observe.secondary_audit``) says it used everything the vehicle has and stopped within
+the distance that allows (or that no stop was possible); otherwise, and for any other rule, it
+is an avoidable violation."""
 
 
 BRAKE_LOST_CODES = frozenset({"1133", "1136"})
@@ -142,18 +145,26 @@ sweep reads summary.json events, whose codes are strings)."""
 
 def unavoidable_cause(fault: str | None, rules: list[str], summary: dict[str, Any]) -> str | None:
     """Why a violating run's violations were physically unavoidable, or None when they were not:
-    the drawn fault's own reaction must be in the events (the speed server's emergency stop and
-    its fault saying the brake does not apply or failed) and the engine off at the end."""
+    the drawn fault's own reaction must be in the events (the speed server's emergency stop,
+    its fault saying the brake does not apply or failed, its takeover request) and the judge's
+    secondary-braking audit must find every means used and the stop within its distance."""
     allowed = UNAVOIDABLE.get(fault or "")
     if not rules or allowed is None or not set(rules) <= allowed:
         return None
     events = summary["events"]
-    estop = any(e["kind"] == "estop" and e.get("source") == "speed" for e in events)
-    brake_fault = any(e["kind"] == "fault" and e.get("source") == "speed"
-                      and str(e.get("code")) in BRAKE_LOST_CODES for e in events)
-    if not (estop and brake_fault) or summary["final"].get("engine") != "off":
+    reacted = all(any(e["kind"] == kind and e.get("source") == "speed"
+                      and str(e.get("code")) in codes for e in events)
+                  for kind, codes in (("estop", BRAKE_LOST_CODES), ("fault", BRAKE_LOST_CODES),
+                                      ("takeover", BRAKE_LOST_CODES)))
+    audit = summary.get("secondary_braking")
+    if not reacted or not audit or not audit["all_used"]:
         return None
-    return f"{fault}: no brakes; emergency stop raised and engine cut, the vehicle coasted"
+    if audit["within"]:
+        return (f"{fault}: no service brake; every secondary means used, stopped in "
+                f"{audit['distance_m']} m of the {audit['allowed_m']} m they allow")
+    if audit["allowed_m"] is None:
+        return f"{fault}: no service brake; every secondary means used, none can stop it here"
+    return None
 
 
 def run_one(job: tuple[dict[str, Any], str, int, str | None]) -> dict[str, Any]:

@@ -50,11 +50,11 @@ FAULT_MESSAGES: dict[ActuatorFault, str] = {
     ActuatorFault.THROTTLE_STUCK_CLOSED: "throttle stuck at {actual_pct:.1f} % (commanded "
                                          "{command_pct:.1f} %): engine cut, emergency stop",
     ActuatorFault.BRAKE_NOT_APPLYING: "brake stuck at {actual_pct:.1f} % (commanded "
-                                      "{command_pct:.1f} %): engine cut, emergency stop",
+                                      "{command_pct:.1f} %): emergency stop, secondary braking",
     ActuatorFault.BRAKE_WEAK: "brake gives {ratio:.0%} of the expected deceleration: envelope "
                               "tightened",
     ActuatorFault.BRAKE_FAILED: "brake gives {ratio:.0%} of the expected deceleration, too little "
-                                "to hold a 15 % grade: engine cut, emergency stop",
+                                "to hold a 15 % grade: emergency stop, secondary braking",
     ActuatorFault.STEERING_STUCK: "steering stuck at {actual_pct:.1f} % (commanded "
                                   "{command_pct:.1f} %), driving curvature {curvature_1pm:.3f} "
                                   "1/m: stopping",
@@ -63,7 +63,12 @@ FAULT_MESSAGES: dict[ActuatorFault, str] = {
 
 CUTS_ENGINE = frozenset({ActuatorFault.THROTTLE_STUCK_OPEN, ActuatorFault.THROTTLE_STUCK_CLOSED,
                          ActuatorFault.BRAKE_NOT_APPLYING, ActuatorFault.BRAKE_FAILED})
-"""Faults after which the speed loop cannot be trusted: engine off and emergency stop."""
+"""Faults after which the speed loop cannot be trusted: engine off and emergency stop (a lost
+brake keeps the engine running while it brakes the moving vehicle: ``BRAKE_LOST``)."""
+
+BRAKE_LOST = frozenset({ActuatorFault.BRAKE_NOT_APPLYING, ActuatorFault.BRAKE_FAILED})
+"""The service brake lost (issue 30 item 4): the speed server brakes with what the vehicle has
+left (``dynamics.secondary_braking``) and asks the safety driver to take over."""
 
 
 def fault_message(code: ActuatorFault, **details: float) -> str:
@@ -195,11 +200,12 @@ class BrakeApplyCheck(FollowCheck):
 
 
 def brake_ratio(params: VehicleParams, direction: int, speed_mps: float, accel_x_mps2: float,
-                pitch_rad: float, brake_pct: float) -> float | None:
+                pitch_rad: float, brake_pct: float, engine_brake_mps2: float = 0.0) -> float | None:
     """Achieved / predicted deceleration of ``brake_pct`` (None: no usable sample).
 
-    ``accel_x_mps2`` is the IMU's specific force (no gravity in it); rolling resistance and drag
-    are taken out, so the grade needs no model (the adaptive model's formula).
+    ``accel_x_mps2`` is the IMU's specific force (no gravity in it); rolling resistance, drag
+    and the engine braking of the gear (``engine_brake_mps2``, issue 30 item 4) are taken out,
+    so the grade needs no model (the adaptive model's formula).
     """
     v_along = direction * speed_mps
     predicted = brake_pct * 0.01 * params.max_brake_decel_mps2
@@ -207,7 +213,8 @@ def brake_ratio(params: VehicleParams, direction: int, speed_mps: float, accel_x
         return None
     cos_pitch = math.cos(pitch_rad)
     losses = (params.rolling_resistance * G_MPS2 * cos_pitch
-              + 0.5 * AIR_DENSITY_KGPM3 * params.drag_area_m2 * v_along * v_along / params.mass_kg)
+              + 0.5 * AIR_DENSITY_KGPM3 * params.drag_area_m2 * v_along * v_along / params.mass_kg
+              + engine_brake_mps2)
     return (-direction * accel_x_mps2 - losses) / predicted
 
 
@@ -325,6 +332,11 @@ class PedalMonitor:
         self.reported: set[str] = set()   # pedals whose stuck onset was reported
         self.cut = False   # latched: an actuator the speed loop relies on does not follow
 
+    @property
+    def cut_throttle(self) -> bool:
+        """A throttle stuck onset was reported: the engine must be cut (no engine braking)."""
+        return "THROTTLE" in self.reported
+
     def set_status_period(self, period_s: float) -> None:
         """The vehicle status's period as measured from its receipts: a position repeats for a
         period, so "still" needs ``hold_periods`` of them (never less than ``hold_s``)."""
@@ -335,7 +347,7 @@ class PedalMonitor:
     def update(self, dt_s: float, *, armed: bool, throttle_cmd_pct: float, brake_cmd_pct: float,
                throttle_pct: float, brake_pct: float, direction: int, speed_mps: float,
                accel_x_mps2: float | None, pitch_rad: float, slipping: bool,
-               sample_response: bool = True) -> list[Finding]:
+               sample_response: bool = True, engine_brake_mps2: float = 0.0) -> list[Finding]:
         """One new vehicle status (``dt_s`` since the last one): the commands sent last period
         and the positions it reports; new onsets. Step it only on a new status: a repeated one
         would count as an actuator standing still.
@@ -370,7 +382,7 @@ class PedalMonitor:
                 and direction * speed_mps >= cfg.min_speed_mps
                 and brake_pct * 0.01 * self.params.max_brake_decel_mps2 >= cfg.min_predicted_mps2):
             ratio = brake_ratio(self.params, direction, speed_mps, accel_x_mps2, pitch_rad,
-                                brake_pct)
+                                brake_pct, engine_brake_mps2)
             for code in self.response.update(dt_s, ratio) if ratio is not None else ():
                 self.cut |= code in CUTS_ENGINE
                 found.append(Finding(code, fault_message(code, ratio=self.response.ratio)))
@@ -425,6 +437,6 @@ class SteeringMonitor:
         return None
 
 
-__all__ = ["CUTS_ENGINE", "FAULT_MESSAGES", "ActuatorFault", "ActuatorMonitorConfig",
+__all__ = ["BRAKE_LOST", "CUTS_ENGINE", "FAULT_MESSAGES", "ActuatorFault", "ActuatorMonitorConfig",
            "BrakeApplyCheck", "BrakeProbe", "BrakeResponse", "Finding", "FollowCheck", "PedalMonitor",
            "SteeringMonitor", "brake_ratio", "fault_message"]

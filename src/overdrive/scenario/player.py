@@ -204,6 +204,8 @@ class ScenarioPlayer:
             if body.steering is not None:
                 changes["steering_rate_scale"] = body.steering.rate_scale
                 changes["steering_stuck"] = body.steering.stuck
+            if body.park_brake is not None:
+                changes["park_brake_failed"] = body.park_brake.failed
             self.faults = msgspec.structs.replace(self.faults, **changes)
             out.append((SIM_FAULTS_TOPIC, self.faults))
         elif kind == "sensor":

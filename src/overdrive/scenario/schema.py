@@ -194,10 +194,15 @@ class SteeringFaultSpec(Spec, frozen=True):
     stuck: bool = False
 
 
+class ParkBrakeFaultSpec(Spec, frozen=True):
+    failed: bool = False              # failed: the parking brake gives nothing, moving or at rest
+
+
 class ActuatorFaultSpec(Spec, frozen=True):
     throttle: PedalFaultSpec | None = None
     brake: PedalFaultSpec | None = None
     steering: SteeringFaultSpec | None = None
+    park_brake: ParkBrakeFaultSpec | None = None
 
 
 class WorldChangeSpec(Spec, frozen=True):

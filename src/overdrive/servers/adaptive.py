@@ -6,7 +6,8 @@ from the vehicle's own reports, and the ratio measured / predicted (the actuator
 
 - **brake**: deceleration per brake %. Predicted ``brake_pct/100 * max_brake_decel``;
   measured from the IMU's specific force along the direction of travel (gravity is not in it)
-  minus rolling resistance and drag, while braking without throttle, moving, and without
+  minus rolling resistance, drag and the gear's engine braking (issue 30 item 4), while
+  braking without throttle, moving, and without
   traction-control / ABS activity (then the tyres, not the brake, limit the deceleration).
 - **throttle**: acceleration per throttle %. Predicted ``throttle_pct/100 * drive authority``
   of the engaged gear at the current speed; measured the same way while driving without brake.
@@ -31,8 +32,9 @@ import math
 
 import msgspec
 
+from overdrive.dynamics.secondary_braking import engine_brake_mps2
 from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
-from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
+from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import Message
 
 ESTIMATES_TOPIC = "move/estimates"
@@ -132,6 +134,7 @@ class ActuatorModel:
 
     def __init__(self, params: VehicleParams, config: AdaptiveConfig | None = None) -> None:
         self.params = params
+        self.gears = GearTable(params)
         self.config = cfg = config or AdaptiveConfig()
         self.brake = RatioEstimator(cfg)
         self.throttle = RatioEstimator(cfg)
@@ -146,7 +149,7 @@ class ActuatorModel:
 
     def update_pedals(self, dt_s: float, gear_direction: int, gear_name: str, speed_mps: float,
                       accel_x_mps2: float, pitch_rad: float, throttle_pct: float,
-                      brake_pct: float, slipping: bool) -> None:
+                      brake_pct: float, slipping: bool, engine_running: bool = True) -> None:
         """One sample from actual pedal positions, ground speed and the IMU's forward force.
 
         ``accel_x_mps2`` is the IMU's specific force (gravity along the pitch is in the plant's
@@ -162,6 +165,10 @@ class ActuatorModel:
         sin_pitch = gear_direction * math.sin(pitch_rad)
         losses = resistance_mps2(p, v_along, sin_pitch) - G_MPS2 * sin_pitch   # rolling + drag
         if brake_pct >= cfg.min_brake_pct and throttle_pct <= cfg.pedal_off_pct:
+            # the gear's engine braking at closed throttle is no brake (issue 30 item 4)
+            gear = self.gears.get(gear_name)
+            if gear is not None:
+                losses += engine_brake_mps2(gear, throttle_pct * 0.01, v_along, engine_running)
             predicted = brake_pct * 0.01 * p.max_brake_decel_mps2
             if predicted >= cfg.min_predicted_mps2:
                 self.brake.update((-a_along - losses) / predicted, dt_s)

@@ -527,7 +527,8 @@ class MoveServer:
                 direction = self._vehicle_direction()
                 self.model.update_pedals(dt_s, direction, status.gear, self.speed_mps,
                                          imu.accel_x_mps2, gps.pitch_rad, status.throttle_pct,
-                                         status.brake_pct, status.traction_control)
+                                         status.brake_pct, status.traction_control,
+                                         status.engine == "running")
             self.model.update_steering(dt_s, self.steer_cmd_pct, status.steer_pct)
         if imu is not None:
             self.monitor.update_imu(dt_s, imu.accel_z_mps2)

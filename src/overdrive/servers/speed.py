@@ -35,6 +35,15 @@ Decisions the seed leaves open (documented in ``docs/speed-server.md``):
   reset to it, so its integrator holds), rising from there at the loop's own slew rate.
 - After the automatic park (``pause_park_s`` in paused) a repeated request for paused does not
   restart the engine; the client must request another state first.
+- Secondary braking (issue 30 item 4): a service brake that does not apply or failed latches
+  the e-stop for good (like every actuator fault) and raises a takeover request
+  (``SpeedState.takeover``, a ``takeover`` notice) with a ``secondary_braking`` notice naming
+  what the vehicle has left. Throttle 0; the engine is kept running while moving when the
+  vehicle has engine braking (``dynamics.secondary_braking``) and cut once stopped (at once if
+  a throttle fault comes too); a gearbox that may shift while moving is downshifted to
+  ``secondary_gear``; the parking brake is applied as soon as the speed is at or below the
+  vehicle's ``park_brake_max_apply_mps`` and held. The parking brake is never commanded above
+  that speed, in any state (a stopped vehicle is always below it).
 """
 
 from __future__ import annotations
@@ -46,6 +55,11 @@ from typing import Any
 import msgspec
 
 from overdrive.dynamics.control import MAX_CONTROL_STEP_S, first_order_lag
+from overdrive.dynamics.secondary_braking import (
+    engine_brake_mps2,
+    has_engine_braking,
+    secondary_gear,
+)
 from overdrive.dynamics.speed_control import (
     LongitudinalController,
     LongitudinalGains,
@@ -65,7 +79,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
 )
-from overdrive.safety.actuators import CUTS_ENGINE, PedalMonitor
+from overdrive.safety.actuators import BRAKE_LOST, CUTS_ENGINE, PedalMonitor
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
@@ -211,6 +225,10 @@ class SpeedServer:
         # follow cuts the engine for good (engine_cut) under a latched emergency stop
         self.actuator_monitor = PedalMonitor(params)
         self.engine_cut = False
+        # secondary braking (issue 30 item 4): the service brake lost, what is used instead
+        self.brake_lost = False
+        self.takeover = False            # SpeedState.takeover: latched, the safety driver must drive
+        self.park_applied = False        # the parking brake applied on a lost service brake
         self.monitor_actuators = cfg.monitor_actuators
         # direction hold (issue 16): hill-start hold, rollback catch, rollback faults
         self.direction_hold = DirectionHold(params, cfg.direction_hold)
@@ -241,6 +259,8 @@ class SpeedServer:
             now_s, gear.direction if gear is not None else 0))
         self._update_measurements(now_s, dt_s)
         self._monitor_actuators(now_s, out)
+        if self.brake_lost and not self.engine_cut and self.stopped:
+            self.engine_cut = True   # engine braking kept it running while moving; at rest, cut
         self._vehicle_timeout(now_s, out)
 
         client_fault_edge = False
@@ -421,7 +441,7 @@ class SpeedServer:
         self._feed_watchdog(now_s, now_s if sent_s is None else sent_s)
         if self.latched:
             sent = now_s if sent_s is None else sent_s
-            if (self.engine_cut or self.sensor_lost or not self.stopped
+            if (self.engine_cut or self.brake_lost or self.sensor_lost or not self.stopped
                     or (self.estop_code > CLIENT_FAULT_MAX
                         and (spss.state == "run" or not now_s > self.estop_since_s + TIME_EPS_S
                              or not sent > self.estop_since_s))):
@@ -464,7 +484,9 @@ class SpeedServer:
         if spss.state == "run" and gear.direction == 0:
             return FaultCode.NO_DRIVE_GEAR, fault_message(FaultCode.NO_DRIVE_GEAR, gear=spss.gear)
         if (spss.state == "run" and self.state in ("runwait", "shifting", "run")
-                and spss.gear != self.goal_gear):
+                and spss.gear != self.goal_gear
+                and not (self.brake_lost and spss.gear == self.gear_cmd)):
+            # (the server's own downshift on a lost brake, echoed by its client, is no change)
             # seed 001: "go to idle and specify a new gear": idle with a new gear is accepted
             # (the vehicle stops, goes idle, then shifts); run with a new gear is not
             return FaultCode.GEAR_CHANGE_OUTSIDE_IDLE, fault_message(
@@ -589,13 +611,42 @@ class SpeedServer:
             speed_mps=self.speed_mps,
             accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
-            slipping=status.traction_control, sample_response=not self.sensor_lost)
+            slipping=status.traction_control, sample_response=not self.sensor_lost,
+            engine_brake_mps2=engine_brake_mps2(
+                gear, status.throttle_pct * 0.01, self.speed_mps * gear.direction,
+                status.engine == "running") if gear is not None else 0.0)
         for finding in findings:
             self._raise_fault(now_s, int(finding.code), finding.message, out)
-            if finding.code in CUTS_ENGINE and not self.engine_cut:
+            if finding.code in BRAKE_LOST and not self.brake_lost:
+                self._brake_lost(finding.message, int(finding.code), out)
+            elif finding.code in CUTS_ENGINE and not self.engine_cut:
                 self.engine_cut = True
                 self.goal, self.target_mps = "parked", 0.0
                 self._estop(finding.message, out, int(finding.code))
+
+    def _brake_lost(self, message: str, code: int, out: list) -> None:
+        """The service brake does not apply or failed: an e-stop for good, a takeover request,
+        and what the vehicle has left (engine braking keeps the engine running while moving)."""
+        p = self.params
+        self.brake_lost = self.takeover = True
+        self.goal, self.target_mps = "parked", 0.0
+        self._estop(message, out, code)
+        gear = self._gear()
+        speed = abs(self.speed_mps)
+        means = []
+        if has_engine_braking(p, gear, speed) and not self.actuator_monitor.cut_throttle:
+            shift = secondary_gear(p, gear, speed)
+            means.append(f"engine braking in {shift.name}"
+                         + (f" (downshift from {gear.name})" if shift is not gear else ""))
+        else:
+            self.engine_cut = True
+        if p.park_brake_decel_mps2 > 0.0:
+            means.append(f"parking brake at or below {p.park_brake_max_apply_mps:g} m/s")
+        used = ", ".join(means) if means else "none (coasting)"
+        out.append((Topic.NOTICE, Notice(kind="secondary_braking", source=SOURCE, code=str(code),
+                                         reason=f"service brake lost; secondary braking: {used}")))
+        out.append((Topic.NOTICE, Notice(kind="takeover", source=SOURCE, code=str(code),
+                                         reason=f"take over: service brake lost ({message})")))
 
     # ------------------------------------------------------------------ state machine
 
@@ -666,13 +717,21 @@ class SpeedServer:
             self.gear_cmd = self.neutral_gear
         elif state == "shifting" and self.stopped:
             self.gear_cmd = self.goal_gear
+        speed = abs(self.speed_mps)
+        if self.brake_lost and not self.stopped and not self.engine_cut and row.in_gear:
+            # downshift for engine braking where the gearbox allows it at this speed
+            self.gear_cmd = secondary_gear(p, self._gear(), speed).name
         engine_on = row.engine_on and not self.engine_cut
         if state == "starting" and self.status is not None:
             # seed 001: starting "Must be in neutral": crank only out of gear
             status_gear = self.gears.get(self.status.gear)
             engine_on = status_gear.direction == 0 if status_gear is not None else False
+        park_ok = self.stopped or speed <= p.park_brake_max_apply_mps
+        if self.brake_lost and park_ok and p.park_brake_decel_mps2 > 0.0:
+            self.park_applied = True   # held from here on
+        park_brake = (row.brakes_locked and park_ok) or self.park_applied
         powertrain = PowertrainCommand(gear=self.gear_cmd, engine_on=engine_on,
-                                       horn=state == "runwait", park_brake=row.brakes_locked,
+                                       horn=state == "runwait", park_brake=park_brake,
                                        source=SOURCE)
         if row.brakes_locked:
             return PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE), powertrain
@@ -705,9 +764,9 @@ class SpeedServer:
         if hold.mode == "brake":   # a rollback caught or a fault: full brake, throttle closed
             self.controller.reset(direction * self.speed_filt_mps, a_g, 100.0)
             return (PedalCommand(throttle_pct=0.0, brake_pct=100.0, source=SOURCE),
-                    msgspec.structs.replace(powertrain, park_brake=True))
+                    msgspec.structs.replace(powertrain, park_brake=park_ok))
         if hold.mode == "park":    # hill start (throttle building) or auto-hold at a standstill
-            powertrain = msgspec.structs.replace(powertrain, park_brake=True)
+            powertrain = msgspec.structs.replace(powertrain, park_brake=park_ok)
         probe = self._brake_probe(dt_s, result, target, v_g, direction, pitch, status)
         if probe is not None:
             return probe, powertrain
@@ -779,6 +838,7 @@ class SpeedServer:
             estop_code=self.estop_code if self.latched else 0,
             unasked_stops=self.unasked_stops, started_s=self.first_step_s,
             direction_hold=self.direction_hold.state,  # type: ignore[arg-type]
+            takeover=self.takeover,
         )
 
 

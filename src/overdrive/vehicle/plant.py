@@ -8,7 +8,14 @@ Model (SI units, x forward along the heading):
 - Drive force ``F_d = throttle * min(F_gear, P_max / max(|v|, 0.5 m/s))``, tapering to zero over
   the last 10 % below the gear's top speed (redline); none while shifting or with the engine off.
 - Brake force ``F_b = brake * m * a_brake_max``, opposing motion; the park pawl or parking
-  brake holds a stopped vehicle with ``m * a_brake_max`` but does not brake a moving one.
+  brake holds a stopped vehicle with ``m * a_brake_max``.
+- Secondary braking (issue 30 item 4; ``dynamics.secondary_braking``): engine braking
+  ``m * a_engine(gear) * f(throttle, v)`` with the engine running, in gear, not shifting, at
+  closed throttle (``engine_brake_factor``); the parking brake on a moving vehicle
+  ``level * m * a_park``, ``level`` ramping 0..1 over ``park_brake_apply_s`` while applied
+  (0 at once when released). Both join the brake force inside the friction ellipse. A
+  scenario may fail the parking brake (``park_brake_failed``); a stuck service-brake actuator
+  or weak service hydraulics take it with them unless the vehicle file says it survives them.
 - Rolling resistance ``C_rr * m * g * cos(pitch)``; drag ``0.5 * rho * CdA * v * |v|``;
   grade ``-m * g * sin(pitch)``.
 - Combined slip, friction ellipse: ``(F_x / X)^2 + (F_y / Y)^2 <= 1`` with ``X = mu N``
@@ -40,6 +47,7 @@ import random
 
 import msgspec
 
+from overdrive.dynamics.secondary_braking import engine_brake_factor
 from overdrive.dynamics.vehicle_params import (
     AIR_DENSITY_KGPM3,
     DRY_MU,
@@ -79,6 +87,7 @@ class ActuatorFaults(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     brake_stuck: bool = False
     steering_rate_scale: float = 1.0
     steering_stuck: bool = False
+    park_brake_failed: bool = False   # the parking brake gives nothing (moving or at rest)
 
 
 class Plant:
@@ -119,6 +128,7 @@ class Plant:
         self.pitch_rad = 0.0
         self.roll_rad = 0.0
         self.park_brake = gear is None
+        self.park_brake_level = 0.0   # the parking brake's application on a moving vehicle, 0..1
         self._update_attitude()
 
     # ------------------------------------------------------------------ helpers
@@ -146,6 +156,14 @@ class Plant:
             self._grade_starts = [seg[0] for seg in world.grade_segments]
         i = bisect.bisect_right(self._grade_starts, self.x_m) - 1
         return world.grade_segments[max(i, 0)][1]
+
+    def _park_brake_share(self) -> float:
+        """What the parking brake gives (0..1) with the faults injected: nothing failed, or
+        with the service brake's failure when the vehicle file says it does not survive it."""
+        p, faults = self.params, self.faults
+        if faults.park_brake_failed or (faults.brake_stuck and not p.park_brake_survives_actuator):
+            return 0.0
+        return 1.0 if p.park_brake_survives_hydraulic else min(faults.brake_effectiveness, 1.0)
 
     def _update_attitude(self) -> None:
         road_pitch = math.atan(self._grade_percent() / 100.0)
@@ -203,6 +221,12 @@ class Plant:
         faults = self.faults
         self._powertrain(dt_s, gear_cmd, engine_on)
         self.park_brake = park_brake
+        # applied: a ramp over park_brake_apply_s; released: at once (a simplification: the
+        # direction hold releases it as the drive builds, and a drag on the launch after an
+        # auto-hold is not what the vehicle files describe)
+        self.park_brake_level = (min(self.park_brake_level + dt_s / p.park_brake_apply_s, 1.0)
+                                 if park_brake else 0.0)
+        park_share = self._park_brake_share()
 
         # actuators
         if not faults.throttle_stuck:
@@ -247,9 +271,13 @@ class Plant:
                 slip = True
                 spin_mps = direction * min((abs(drive_n) - driven_cap_n) / m, 5.0)
                 drive_n = math.copysign(driven_cap_n, drive_n)
+            # engine braking (closed throttle, in gear, moving the gear's way)
+            drive_n -= direction * m * gear.engine_brake_decel_mps2 * engine_brake_factor(
+                self.throttle, along)
 
         brake_n = self.brake * faults.brake_effectiveness * m * p.max_brake_decel_mps2
-        if (gear.holds or park_brake) and abs(v) < STOPPED_MPS:
+        brake_n += self.park_brake_level * park_share * m * p.park_brake_decel_mps2
+        if (gear.holds or (park_brake and park_share > 0.0)) and abs(v) < STOPPED_MPS:
             # park pawl / parking brake: holds a stopped vehicle; at speed only the service
             # brake (with its lag and faults) decelerates
             brake_n = max(brake_n, m * p.max_brake_decel_mps2)
