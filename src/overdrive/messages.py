@@ -296,6 +296,10 @@ class SafetyDevices(Message, frozen=True):
 EngineState = Literal["off", "cranking", "running"]
 
 
+ENGINE_CUT_MODES = frozenset({"estop-disable", "inactive"})
+"""``VehicleStatus.safety_mode`` values in which the vehicle kills its engine (seed 000)."""
+
+
 class VehicleStatus(Message, frozen=True):
     gear: str
     shifting: bool

@@ -10,7 +10,13 @@ sequences the speed server (seed 001) as its only client. A streaming source (th
 silent beyond ``command_silence_s`` is loss of command traffic: the vehicle stops as for a
 STOP, the stop is counted (``DrivingStatus.unasked_stops``) and the source held at 0 until it
 sends 0. Tyres that slide in a curve (traction control and a yaw-rate deficit, issue 30) stop
-the vehicle the same way, braking first with the curvature held. Design and formulas: docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
+the vehicle the same way, braking first with the curvature held. An interruption (the vehicle
+leaving drive-by-wire or computer speed control: a pause, an override, an e-stop, a door; or an
+emergency stop or restart of the speed server) latches here, for every client of this module,
+as the move server latches it for its own: every authorization is held at 0, the speed server
+is asked for ``paused`` (``parked`` once the engine is cut), and nothing moves until an
+authorization arrives after the vehicle is back (issue 31). Design and formulas:
+docs/driving-module.md; the ellipse: ``overdrive.dynamics.ellipse``.
 
 Outputs: ``SteerCommand`` and ``DrivingStatus`` every period, ``SetSpeed`` every 100 ms,
 ``Notice(kind="rejected")`` for every rejected input.
@@ -42,6 +48,7 @@ from overdrive.dynamics.ellipse import (
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
+    ENGINE_CUT_MODES,
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
@@ -560,6 +567,14 @@ class DrivingModule:
         self.last_unasked_stop = ""   # the newest one's cause: command_silence | grip_lost
         self._drift_rad = 0.0   # heading lost to sliding in a curve (issue 30, _sliding) ...
         self._drift_m = 0.0     # ... and the distance outside the curve it made
+        # interruptions (issue 31, _watch_interruptions): latched until a new authorization
+        self.vehicle_status: VehicleStatus | None = None
+        self.interrupted = ""   # the latched interruption's cause ("" when none)
+        self.hold_state = "paused"   # what the speed server is asked for while latched
+        self._vehicle_ok: bool | None = None   # drive-by-wire with computer speed, last seen
+        self._speed_stops: tuple[int, float] | None = None   # (unasked_stops, started_s) seen
+        self._speed_stop_cause = ""   # a rise or a restart seen since the last step
+        self._held_noticed: set[tuple[str, bool]] = set()   # sources told they are held
 
     # ------------------------------------------------------------------ inputs
 
@@ -669,6 +684,11 @@ class DrivingModule:
                     distance_m = 0.0   # lost once: held until it says it knows (it sends 0)
                 else:
                     del self.traffic_lost[msg.source]
+            if self.interrupted and distance_m > 0.0:
+                if self._vehicle_ok:
+                    self._resume(msg.source, out)   # a new authorization after the release
+                else:
+                    distance_m = self._held(msg.source, msg.reverse, out)
             self.authorizations.update(msg.source, msg.reverse, distance_m, odometer0)
         self._arrived.clear()
 
@@ -708,6 +728,64 @@ class DrivingModule:
             self.last_unasked_stop = "command_silence"
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code="command_silence", reason=why)))
+
+    def _watch_interruptions(self, out: list) -> None:
+        """Issue 31 (seed 000's pause, override, e-stop and door; seed 004's "nothing moves until
+        a new command"): the vehicle leaving drive-by-wire or computer speed control, or a stop
+        the speed server made on its own (a rise of ``SpeedState.unasked_stops``, a restart),
+        latches an interruption. Every authorization is held at 0 (a streaming source until it
+        sends 0, as after a loss of command traffic) and the speed server is asked for
+        ``paused`` (``parked`` once the engine is off), so a client of this module that keeps
+        its old authorization, or re-sends it during the interruption, never drives on after
+        the release. Only an authorization that arrives once the vehicle is back releases it."""
+        status = self.vehicle_status
+        cause, self._speed_stop_cause = self._speed_stop_cause, ""
+        if status is not None:
+            ok = status.safety_mode == "drive-by-wire" and status.computer_speed
+            was_ok, self._vehicle_ok = self._vehicle_ok, ok
+            if was_ok and not ok:
+                cause = status.safety_mode if status.computer_speed \
+                    else f"{status.safety_mode}, no computer speed control"
+            if self.interrupted and (status.engine != "running"
+                                     or status.safety_mode in ENGINE_CUT_MODES):
+                self.hold_state = "parked"
+        if not cause:
+            return
+        held = sorted({source for source, _ in self.authorizations.by_source})
+        for source, rev in list(self.authorizations.by_source):
+            self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
+            if source in self.config.streaming_sources:
+                self.traffic_lost[source] = f"interrupted ({cause})"
+        engine_off = status is not None and (status.engine != "running"
+                                             or status.safety_mode in ENGINE_CUT_MODES)
+        self.hold_state = "parked" if engine_off else "paused"
+        self._held_noticed.clear()
+        already = self.interrupted
+        self.interrupted = cause
+        if not already:
+            out.append((Topic.NOTICE, Notice(
+                kind="latched", source=SOURCE, code=cause,
+                reason=f"interrupted ({cause}): authorizations of {held or 'no source'} held "
+                       f"at 0, the speed server asked for {self.hold_state}; nothing moves "
+                       f"until a new authorization after the vehicle is back")))
+
+    def _held(self, source: str, reverse: bool, out: list) -> float:
+        """An authorization that arrives during an interruption: held at 0 (noticed once)."""
+        if (source, reverse) not in self._held_noticed:
+            self._held_noticed.add((source, reverse))
+            self._reject("advance", f"advance from {source!r} held at 0: interrupted "
+                                    f"({self.interrupted}); send it again once the vehicle "
+                                    f"is back", out)
+        return 0.0
+
+    def _resume(self, source: str, out: list) -> None:
+        """The first authorization after the release: the interruption's latch ends."""
+        out.append((Topic.NOTICE, Notice(
+            kind="resumed", source=SOURCE, code=self.interrupted,
+            reason=f"a new authorization from {source!r} after the interruption "
+                   f"({self.interrupted}): driving again")))
+        self.interrupted = ""
+        self._held_noticed.clear()
 
     def _source_remaining_m(self, source: str, reverse: bool) -> float:
         """What is left of one source's authorization for a direction (0 when it has none)."""
@@ -753,9 +831,16 @@ class DrivingModule:
             self.speed_state = msg
             if msg.hint == "slipping":
                 self._slip(now_s)
+            seen, self._speed_stops = self._speed_stops, (msg.unasked_stops, msg.started_s)
+            if seen is not None and msg.started_s != seen[1]:
+                self._speed_stop_cause = "speed_restart"
+            elif seen is not None and msg.unasked_stops > seen[0]:
+                self._speed_stop_cause = f"speed_stop_{msg.estop_code}" if msg.estop_code \
+                    else "speed_stop"
 
     def _vehicle_status(self, now_s: float, msg: Any, out: list) -> None:
         if isinstance(msg, VehicleStatus):
+            self.vehicle_status = msg
             if finite(msg.steer_pct):
                 self.steer_status = msg
             if msg.traction_control is True:
@@ -787,6 +872,7 @@ class DrivingModule:
         if self.gps is not None:
             self.history.record(now_s, self._progress_m(False))
             self.history_reverse.record(now_s, self._progress_m(True))
+        self._watch_interruptions(out)
         if self._arrived:
             self._apply_advances(now_s, out)
         p, cfg = self.params, self.config
@@ -1132,6 +1218,8 @@ class DrivingModule:
         """The current request to the speed server (kept between SPSS sends)."""
         server = self.speed_state
         target = self.mode.state
+        if self.interrupted and target in ("run", "idle"):
+            target = self.hold_state   # latched: paused (parked once the engine is off)
         stopped = v < self.config.stopped_mps
         if server is None:
             request = Request(target, self.planned_gear, drive=False)

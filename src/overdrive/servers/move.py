@@ -65,6 +65,7 @@ from overdrive.dynamics.ellipse import (
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
+    ENGINE_CUT_MODES,
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
@@ -96,7 +97,6 @@ from overdrive.servers.speed_table import ESTOP_CAUSES, FaultCode, estop_cause
 
 SOURCE = "move"
 TIME_EPS_S = 1e-9
-ENGINE_CUT_MODES = frozenset({"estop-disable", "inactive"})   # seed 000: the XGV kills the engine
 SENSOR_TOPICS = frozenset({Topic.GPS_INS, Topic.IMU, Topic.WHEEL_SPEED})
 """Periodic sensors whose samples queued during a stall are dated at their own time
 (``move_arrivals``): the integrals over them (wheel odometer, IMU) never credit a stall to one."""

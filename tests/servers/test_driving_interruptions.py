@@ -1,0 +1,97 @@
+"""The driving module alone (no move server) latches every interruption (issue 31, seed 000's
+pause, override and e-stop; seed 004's "nothing moves until a new command"): a source's old
+authorization, or one re-sent during the interruption, never drives the vehicle on after the
+release; an authorization sent once the vehicle is back does. Judged from the plant's own x/y."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import pytest
+
+from overdrive.run.sim import run_scenario
+from overdrive.scenario.schema import parse_scenario
+from tests.conftest import PRESET_NAMES
+
+INTERRUPTIONS = {
+    "pause": ({"safestop": "pause"}, {"safestop": "run"}, "paused"),
+    "override": ({"manual_override": True}, {"manual_override": False}, "paused"),
+    "estop": ({"safestop": "stop"}, {"safestop": "run"}, "parked"),
+    "door": ({"door": "open"}, {"door": "closed"}, "paused"),
+}
+ON_S, OFF_S = 5.0, 12.0
+STILL_M = 0.02      # travel allowed after the release with no new authorization
+
+
+def drive(preset: str, kind: str, extra: list[dict] = (), duration_s: float = 30.0):
+    on, off, _ = INTERRUPTIONS[kind]
+    data = {"name": "driving-interrupted", "vehicle": preset, "start": "ready", "seed": 1,
+            "duration_s": duration_s,
+            "events": [{"at_s": 1, "advance": {"source": "lidar", "distance_m": 60}},
+                       {"at_s": 1, "max_speed": {"source": "map", "speed_mps": 6}},
+                       {"at_s": ON_S, **on}, {"at_s": OFF_S, **off}, *extra]}
+    return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
+
+
+def travel_after_m(result, t0_s: float) -> float:
+    """Path length the plant drove after ``t0_s`` (ground truth x/y)."""
+    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
+    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
+               for a, b in itertools.pairwise(rows))
+
+
+def speed_states(result) -> list[str]:
+    return [e["to"] for e in result.summary["events"] if e["kind"] == "speed_state"]
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("kind", sorted(INTERRUPTIONS))
+def test_after_an_interruption_the_old_authorization_never_drives_on(preset: str,
+                                                                    kind: str) -> None:
+    result = drive(preset, kind)
+    assert travel_after_m(result, OFF_S) <= STILL_M
+    assert result.summary["violations"] == []
+    assert speed_states(result)[-1] == INTERRUPTIONS[kind][2]
+    interrupted = [e for e in result.summary["events"]
+                   if e["kind"] == "latched" and e["source"] == "driving"]
+    assert len(interrupted) == 1 and interrupted[0]["t_s"] == pytest.approx(ON_S, abs=0.05)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("kind", ["pause", "estop"])
+def test_an_authorization_resent_during_the_interruption_is_held(preset: str, kind: str) -> None:
+    result = drive(preset, kind, [{"at_s": 8.0, "advance": {"source": "lidar", "distance_m": 40}}])
+    assert travel_after_m(result, OFF_S) <= STILL_M
+    held = [e for e in result.summary["events"]
+            if e["kind"] == "rejected" and "held at 0" in e.get("reason", "")]
+    assert held and held[0]["t_s"] == pytest.approx(8.0, abs=0.05)
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("kind", ["pause", "override", "estop"])
+def test_an_authorization_after_the_release_drives_it(preset: str, kind: str) -> None:
+    result = drive(preset, kind, [{"at_s": 14.0, "advance": {"source": "lidar", "distance_m": 10}}],
+                   duration_s=40.0)
+    moved_m = travel_after_m(result, 14.0)
+    assert 9.0 <= moved_m <= 10.0, moved_m      # stops before its end (margin), never past it
+    assert result.summary["violations"] == []
+    assert any(e["kind"] == "resumed" for e in result.summary["events"])
+    assert abs(float(result.trace[-1]["speed_mps"])) < 0.05
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_speed_server_emergency_stop_latches_until_a_new_authorization(preset: str) -> None:
+    """The SPSS stream dropped 0.5 s at cruise: the speed server's watchdog e-stop (an unasked
+    stop); the old authorization never drives on, a new one does."""
+    data = {"name": "driving-watchdog", "vehicle": preset, "start": "ready", "seed": 1,
+            "duration_s": 40,
+            "events": [{"at_s": 1, "advance": {"source": "lidar", "distance_m": 60}},
+                       {"at_s": 1, "max_speed": {"source": "map", "speed_mps": 6}},
+                       {"at_s": 6, "drop": {"channel": "set_speed", "for_s": 0.5}},
+                       {"at_s": 20, "advance": {"source": "lidar", "distance_m": 10}}]}
+    result = run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
+    assert travel_after_m(result, 10.0) - travel_after_m(result, 20.0) <= STILL_M
+    assert 9.0 <= travel_after_m(result, 20.0) <= 10.0
+    assert any(e["kind"] == "latched" and e["source"] == "driving"
+               and e["code"].startswith("speed_stop") for e in result.summary["events"])
