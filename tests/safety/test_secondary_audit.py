@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import msgspec
 import pytest
 
 from overdrive.dynamics.secondary_braking import secondary_stop_m
@@ -31,12 +32,14 @@ Policy = Callable[[float, float], PowertrainCommand]
 
 
 def complete(preset: str) -> Policy:
-    """What the speed server does: the secondary gear, the engine kept, the parking brake."""
+    """What the speed server does: the secondary gear, the engine kept while moving (cut at
+    rest), the parking brake."""
     p = PRESETS[preset]
     low = "low" if preset == "escape-hybrid" else p.drive_gear
 
     def policy(t_s: float, speed_mps: float) -> PowertrainCommand:
-        return PowertrainCommand(gear=low if t_s > 0.0 else p.drive_gear, engine_on=True,
+        return PowertrainCommand(gear=low if t_s > 0.0 else p.drive_gear,
+                                 engine_on=t_s < 0.0 or speed_mps > 0.0,
                                  park_brake=speed_mps <= p.park_brake_max_apply_mps,
                                  source="speed")
     return policy
@@ -90,8 +93,8 @@ def test_the_parking_brake_left_off_is_missing() -> None:
     base = complete("ranger-6x6")
 
     def policy(t_s: float, v: float) -> PowertrainCommand:
-        return PowertrainCommand(gear=base(t_s, v).gear, engine_on=True, park_brake=False,
-                                 source="speed")
+        return PowertrainCommand(gear=base(t_s, v).gear, engine_on=base(t_s, v).engine_on,
+                                 park_brake=False, source="speed")
     record = drive("ranger-6x6", policy)
     assert record is not None and not record["all_used"]
     assert list(record["missing"]) == ["parking brake"]
@@ -127,8 +130,8 @@ def test_an_engine_cut_while_moving_is_missing_where_it_brakes() -> None:
 
 def test_a_missing_downshift_is_named() -> None:
     def policy(t_s: float, v: float) -> PowertrainCommand:
-        return PowertrainCommand(gear="drive", engine_on=True, park_brake=v <= 10.0,
-                                 source="speed")
+        return PowertrainCommand(gear="drive", engine_on=t_s < 0.0 or v > 0.0,
+                                 park_brake=v <= 10.0, source="speed")
     record = drive("escape-hybrid", policy)
     assert record is not None and list(record["missing"]) == ["downshift"]
 
@@ -206,3 +209,41 @@ def test_the_pedal_monitor_says_when_the_throttle_stuck() -> None:
                                 accel_x_mps2=None, pitch_rad=0.0, slipping=False)
     assert [f.code for f in found] == [ActuatorFault.THROTTLE_STUCK_OPEN]
     assert monitor.cut_throttle
+
+
+def test_an_engine_left_running_at_rest_or_after_a_throttle_fault_is_missing() -> None:
+    """The engine must go: at rest (1 s after it) and within the response time of a throttle
+    fault (a stuck throttle drives against the secondary brakes)."""
+    base = complete("escape-hybrid")
+
+    def never_cut(t_s: float, speed_mps: float) -> PowertrainCommand:
+        return msgspec.structs.replace(base(t_s, speed_mps), engine_on=True)
+    record = drive("escape-hybrid", never_cut)
+    assert record is not None and list(record["missing"]) == ["engine cut"]
+    stuck = Notice(kind="fault", source="speed", code="1131", reason="throttle stuck open")
+    record = drive("escape-hybrid", never_cut, extra=(stuck,))
+    assert record is not None and "engine cut" in record["missing"]
+    assert "after a throttle fault" in record["missing"]["engine cut"]
+
+
+def test_a_downshift_owed_once_the_vehicle_is_slower_than_the_braking_gear() -> None:
+    """Lost at 22 m/s, above L's 20 m/s top: D is right at first, L is owed once under 20 m/s
+    (staying in D with the engine on was excused: 807 m of a 912 m allowance, ~301 m possible)."""
+    p = PRESETS["escape-hybrid"]
+
+    def stays_in_drive(t_s: float, speed_mps: float) -> PowertrainCommand:
+        return PowertrainCommand(gear=p.drive_gear, engine_on=t_s < 0.0 or speed_mps > 0.0,
+                                 park_brake=speed_mps <= p.park_brake_max_apply_mps,
+                                 source="speed")
+
+    def shifts_when_slower(t_s: float, speed_mps: float) -> PowertrainCommand:
+        gear = "low" if t_s > 0.0 and speed_mps < 20.0 else p.drive_gear
+        return msgspec.structs.replace(stays_in_drive(t_s, speed_mps), gear=gear)
+    record = drive("escape-hybrid", stays_in_drive, speed_mps=22.0, decel_mps2=1.5, seconds=30.0)
+    assert record is not None and list(record["missing"]) == ["downshift"]
+    record = drive("escape-hybrid", shifts_when_slower, speed_mps=22.0, decel_mps2=1.5,
+                   seconds=30.0)
+    assert record is not None and record["missing"] == {}
+    allowed = secondary_stop_m(p, 22.0, p.gear(p.drive_gear), reaction_s=RESPONSE_S)
+    assert allowed < secondary_stop_m(p, 22.0, p.gear(p.drive_gear), reaction_s=RESPONSE_S,
+                                      downshift=False) * 0.5

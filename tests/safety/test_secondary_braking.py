@@ -308,3 +308,23 @@ def test_the_parking_brake_command_reaches_the_xgv_as_its_flag(park_brake: bool)
     message = client._discrete_command(0.0)
     assert message is not None
     assert message.parking_horn_flags & 1 == int(park_brake)
+
+
+def test_a_brake_lost_above_the_low_gears_top_keeps_the_engine_and_downshifts_when_slower() -> None:
+    """Escape at ~22 m/s (above L's 20 m/s): the engine was cut at once and never used again,
+    905 m to rest, 829 m past the MOVE's end. Now it runs on in D at closed throttle, L is
+    commanded once under 20 m/s, and the stop is within the vehicle file's distance."""
+    data = {"name": "secondary-fast", "vehicle": "escape-hybrid", "start": "ready",
+            "duration_s": 120,
+            "events": [{"at_s": 0.5, "move": {"distance_m": 600, "maxspeed_mps": 22,
+                                              "curvature_1pm": 0}},
+                       {"at_s": 16.0, "actuator": {"brake": {"stuck": True}}}]}
+    result = run_scenario(parse_scenario(data), None)
+    audit = result.summary["secondary_braking"]
+    assert audit is not None and audit["speed_mps"] > 20.0, audit
+    assert audit["all_used"] and audit["within"], audit
+    rows = [r for r in result.trace if float(r["t_s"]) >= audit["at_s"]]
+    assert not [r for r in rows if r["engine"] == "off" and abs(float(r["speed_mps"])) > 0.2]
+    low = next(r for r in rows if r["gear"] == "low")
+    assert abs(float(low["speed_mps"])) < 20.0
+    assert audit["distance_m"] < 400.0, audit

@@ -60,9 +60,16 @@ def secondary_gear(params: VehicleParams, gear: Gear, speed_mps: float) -> Gear:
 
 
 def has_engine_braking(params: VehicleParams, gear: Gear, speed_mps: float) -> bool:
-    """True when the engine can brake the vehicle at ``speed_mps``, in this gear or the one
-    ``secondary_gear`` shifts to: the engine is then worth keeping running."""
-    return secondary_gear(params, gear, speed_mps).engine_brake_decel_mps2 > 0.0
+    """True when the engine can brake the vehicle now or once it is slower: in this gear, or
+    on a gearbox that may shift while moving in any gear of its direction (a gear whose top
+    speed is below ``speed_mps`` is shifted into once the vehicle has slowed under it, so the
+    engine is worth keeping running above it too)."""
+    if gear.engine_brake_decel_mps2 > 0.0:
+        return True
+    if params.shift_only_stopped or gear.direction == 0 or not math.isfinite(speed_mps):
+        return False
+    return any(g.direction == gear.direction and g.engine_brake_decel_mps2 > 0.0
+               for g in params.gears)
 
 
 def secondary_stop_m(params: VehicleParams, speed_mps: float, gear: Gear, *,
@@ -73,8 +80,9 @@ def secondary_stop_m(params: VehicleParams, speed_mps: float, gear: Gear, *,
     uphill along it) with the service brake gone, using what the vehicle has.
 
     ``reaction_s`` at closed throttle in the current gear (detection and response), then: a
-    downshift to ``secondary_gear`` (``shift_time_s`` without engine braking), engine braking in
-    the gear reached, the parking brake applied as soon as the speed is at or below
+    downshift to ``secondary_gear`` whenever the speed allows one (at the start or once the
+    vehicle has slowed under a braking gear's top speed; ``shift_time_s`` without engine
+    braking each), engine braking in the gear reached, the parking brake applied as soon as the speed is at or below
     ``park_brake_max_apply_mps`` and ramped linearly over ``park_brake_apply_s``, rolling
     resistance, drag and gravity as the plant has them; the braking (engine and parking brake)
     capped by the grip ``friction * g * cos(pitch)``. ``engine_braking``, ``park_brake`` and
@@ -89,20 +97,24 @@ def secondary_stop_m(params: VehicleParams, speed_mps: float, gear: Gear, *,
     grip_mps2 = friction * G_MPS2 * cos_p
     resist_mps2 = params.rolling_resistance * G_MPS2 * cos_p
     drag_k = 0.5 * AIR_DENSITY_KGPM3 * params.drag_area_m2 / m
-    target = secondary_gear(params, gear, speed_mps) if downshift else gear
-    shift_s = params.shift_time_s if target is not gear else 0.0
+    current = gear
+    shift_until: float | None = None   # a downshift under way until then
     park_ok = park_brake and params.park_brake_decel_mps2 > 0.0
     v, distance, t = speed_mps, 0.0, 0.0
     park_since: float | None = None
     while v > 0.0:
         if t >= SECONDARY_HORIZON_S:
             return math.inf
-        if t < reaction_s:
-            in_gear = gear
-        elif t < reaction_s + shift_s:
-            in_gear = None   # shifting: no engine braking
-        else:
-            in_gear = target
+        in_gear: Gear | None = current
+        if shift_until is not None:
+            if t < shift_until:
+                in_gear = None   # shifting: no engine braking
+            else:
+                shift_until = None
+        elif downshift and t >= reaction_s:
+            want = secondary_gear(params, current, v)
+            if want is not current:
+                current, shift_until, in_gear = want, t + params.shift_time_s, None
         engine = (in_gear.engine_brake_decel_mps2 * engine_brake_factor(0.0, v)
                   if engine_braking and in_gear is not None else 0.0)
         park = 0.0

@@ -5,10 +5,12 @@ speed server issued them, its notices and the faults injected into the simulated
 the speed server's first "brake lost" fault (1133 BRAKE_NOT_APPLYING or 1136 BRAKE_FAILED) it
 checks that everything the vehicle has was used:
 
-- **engine braking**: the engine not cut while moving when the gear reached brakes (unless a
-  throttle fault came too: then the engine must be cut);
+- **engine braking**: the engine not cut while moving when a gear it may reach brakes (unless
+  a throttle fault came too: then the engine must be cut within ``RESPONSE_S``); the engine
+  cut at rest;
 - **downshift**: on a gearbox that may shift while moving, the gear command is the
-  ``secondary_gear`` within ``RESPONSE_S``;
+  ``secondary_gear`` of the current speed within ``RESPONSE_S`` (at the fault, and again
+  once the vehicle has slowed under a braking gear's top speed);
 - **parking brake**: commanded within ``RESPONSE_S`` of the true speed falling to the vehicle's
   ``park_brake_max_apply_mps`` (when it has one);
 
@@ -60,6 +62,7 @@ class SecondaryBrakingAudit:
         self.gears = GearTable(params)
         self.park_failed = False
         self.throttle_failed = False
+        self.throttle_failed_s = math.inf
         self.gear_cmd: Gear | None = None
         self.park_cmd = False
         self.engine_cmd = True
@@ -73,6 +76,7 @@ class SecondaryBrakingAudit:
         self.missing: dict[str, str] = {}          # means not used -> when and how
         self._owed_since: dict[str, float] = {}
         self.stop_m: float | None = None
+        self.rest_s: float | None = None             # when the vehicle came to rest
 
     # ------------------------------------------------------------------ inputs
 
@@ -92,6 +96,8 @@ class SecondaryBrakingAudit:
         if msg.source != "speed" or msg.kind != "fault":
             return
         if msg.code in THROTTLE_FAULT_CODES:
+            if not self.throttle_failed:
+                self.throttle_failed_s = now_s
             self.throttle_failed = True
         elif msg.code in BRAKE_LOST_CODES and self.start is None:
             gear = self.gear_cmd or self.gears.get(self.params.drive_gear)
@@ -112,6 +118,7 @@ class SecondaryBrakingAudit:
         speed = abs(speed_mps)
         if speed < STOPPED_MPS:
             self.stop_m = self.odometer_m - self.start["odometer_m"]
+            self.rest_s = now_s
             return
         self._check_means(now_s, speed)
 
@@ -129,15 +136,17 @@ class SecondaryBrakingAudit:
     def _check_means(self, now_s: float, speed: float) -> None:
         p = self.params
         assert self.target is not None and self.start is not None
-        engine_brakes = (has_engine_braking(p, self.target, speed) and not self.throttle_failed
+        gear = self.gear_cmd or self.target
+        engine_brakes = (has_engine_braking(p, gear, speed) and not self.throttle_failed
                          and speed > ENGINE_OWED_MPS)
         self._owe("engine braking", engine_brakes, self.engine_cmd, now_s,
                   f"engine cut while moving at {speed:.2f} m/s")
-        downshift = (self.target.name != self.start["gear"] and not self.throttle_failed
-                     and speed > ENGINE_OWED_MPS)
-        self._owe("downshift", downshift, self.gear_cmd is self.target, now_s,
-                  f"gear {self.gear_cmd.name if self.gear_cmd else '?'} instead of "
-                  f"{self.target.name}")
+        self._owe("engine cut", self.throttle_failed, not self.engine_cmd, now_s,
+                  f"engine running {now_s - self.throttle_failed_s:.2f} s after a throttle fault")
+        want = secondary_gear(p, gear, speed)
+        downshift = want is not gear and not self.throttle_failed and speed > ENGINE_OWED_MPS
+        self._owe("downshift", downshift, False, now_s,
+                  f"gear {gear.name} instead of {want.name} at {speed:.2f} m/s")
         park = (p.park_brake_decel_mps2 > 0.0
                 and speed <= p.park_brake_max_apply_mps - PARK_SPEED_MARGIN_MPS)
         self._owe("parking brake", park, self.park_cmd, now_s,
@@ -158,6 +167,9 @@ class SecondaryBrakingAudit:
             engine_braking=not self.throttle_failed, park_brake=not self.park_failed,
             downshift=not self.throttle_failed)
         distance = self.stop_m
+        if self.rest_s is not None and self.engine_cmd and self.now_s > self.rest_s + 1.0:
+            self.missing.setdefault("engine cut", "engine still running 1 s after the vehicle "
+                                                  "came to rest")
         within = distance is not None and distance <= allowed + DISTANCE_TOLERANCE_M
         return {"at_s": start["at_s"], "speed_mps": start["speed_mps"], "gear": start["gear"],
                 "park_brake_failed": self.park_failed, "throttle_failed": self.throttle_failed,

@@ -229,6 +229,7 @@ class SpeedServer:
         self.brake_lost = False
         self.takeover = False            # SpeedState.takeover: latched, the safety driver must drive
         self.park_applied = False        # the parking brake applied on a lost service brake
+        self.park_commanded = False      # this period's PowertrainCommand.park_brake
         self.monitor_actuators = cfg.monitor_actuators
         # direction hold (issue 16): hill-start hold, rollback catch, rollback faults
         self.direction_hold = DirectionHold(params, cfg.direction_hold)
@@ -280,6 +281,7 @@ class SpeedServer:
         pedals, powertrain = self._actuators(control_dt_s, dt_s)
         pedals = self._after_gap(pedals)
         self.pedals = pedals
+        self.park_commanded = powertrain.park_brake
         self._hold_notices(now_s, out)
         self._update_hint(now_s)
         out.append((Topic.PEDALS, pedals))
@@ -611,7 +613,10 @@ class SpeedServer:
             speed_mps=self.speed_mps,
             accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
-            slipping=status.traction_control, sample_response=not self.sensor_lost,
+            slipping=status.traction_control,
+            # the brake's response is not judged while the parking brake adds to it (a weak
+            # service brake would read as healthy, a failed one as weak)
+            sample_response=not self.sensor_lost and not self.park_commanded,
             engine_brake_mps2=engine_brake_mps2(
                 gear, status.throttle_pct * 0.01, self.speed_mps * gear.direction,
                 status.engine == "running") if gear is not None else 0.0)
@@ -637,7 +642,8 @@ class SpeedServer:
         if has_engine_braking(p, gear, speed) and not self.actuator_monitor.cut_throttle:
             shift = secondary_gear(p, gear, speed)
             means.append(f"engine braking in {shift.name}"
-                         + (f" (downshift from {gear.name})" if shift is not gear else ""))
+                         + (f" (downshift from {gear.name})" if shift is not gear else "")
+                         + ("" if p.shift_only_stopped else ", downshifting as the speed allows"))
         else:
             self.engine_cut = True
         if p.park_brake_decel_mps2 > 0.0:
