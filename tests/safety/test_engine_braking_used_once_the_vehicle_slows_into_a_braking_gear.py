@@ -58,8 +58,6 @@ def run(grade_percent: float) -> Any:
     return run_scenario(parse_scenario(data), None)
 
 
-@pytest.mark.xfail(strict=True, reason="engine cut at once when the brake is lost above L's "
-                   "top speed: L's engine braking is never used as the vehicle slows")
 @pytest.mark.parametrize("grade_percent", [0.0, 5.0])
 def test_a_brake_lost_above_the_low_gears_top_speed_stops_with_low_once_below_it(
         grade_percent: float) -> None:
@@ -80,8 +78,6 @@ def test_a_brake_lost_above_the_low_gears_top_speed_stops_with_low_once_below_it
     assert audit["all_used"], audit["missing"]
 
 
-@pytest.mark.xfail(strict=True, reason="secondary_stop_m downshifts only at the start speed: "
-                   "above L's top speed it never shifts later, overstating the distance ~3x")
 @pytest.mark.parametrize("speed_mps", [20.0, 20.5, 22.0, 25.0])
 def test_secondary_stop_counts_a_downshift_once_the_vehicle_has_slowed_into_low(
         speed_mps: float) -> None:
@@ -105,9 +101,6 @@ def test_secondary_stop_below_the_low_gears_top_speed_meets_the_hand_bound(
     assert got <= best_possible_m(p, speed_mps) + 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="the audit owes a downshift only to the gear chosen at "
-                   "the detection speed: a stack that never shifts into L below 20 m/s is judged "
-                   "to have used everything, its overrun unavoidable")
 @pytest.mark.parametrize("grade_percent", [0.0, 5.0])
 def test_a_stack_that_keeps_the_engine_but_never_downshifts_is_judged_avoidable(
         grade_percent: float, monkeypatch: pytest.MonkeyPatch) -> None:

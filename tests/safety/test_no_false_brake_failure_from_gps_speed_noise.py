@@ -43,8 +43,6 @@ def test_gps_noise_on_a_standing_vehicle_raises_no_brake_fault(preset: str, sigm
     check_no_brake_alarm(run(preset, sigma))
 
 
-@pytest.mark.xfail(strict=True, reason="the brake check trusts a noisy GPS/INS speed: a vehicle "
-                   "at rest on 100 % brake is declared brake-failed, e-stop and takeover latched")
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("sigma", [0.3])
 def test_gps_speed_noise_on_a_standing_vehicle_is_no_brake_failure(preset: str,

@@ -25,8 +25,6 @@ def file_without(preset: str, *fields: str) -> dict[str, Any]:
     return data
 
 
-@pytest.mark.xfail(strict=True, reason="park_brake_apply_s is optional: a parking brake usable "
-                   "while moving without its application time silently gets 1.0 s")
 @pytest.mark.parametrize("preset", ["escape-hybrid", "ranger-6x6"])
 def test_a_parking_brake_usable_while_moving_without_an_application_time_is_refused(
         preset: str) -> None:
@@ -47,8 +45,6 @@ def test_a_file_without_any_parking_brake_fields_loads_without_one() -> None:
     assert vehicle_from_data(file_without("ranger-6x6", *fields)).park_brake_decel_mps2 == 0.0
 
 
-@pytest.mark.xfail(strict=True, reason="park_brake_decel_mps2 accepted up to 10 m/s^2, above "
-                   "1 g and above the service brake's own maximum")
 @pytest.mark.parametrize("decel_mps2", [9.9, 10.0])
 def test_a_parking_brake_stronger_than_the_tyres_can_give_is_refused(decel_mps2: float) -> None:
     """Measured (2026-11-26): 10.0 m/s^2 loads (the range's own reason says "at most that
@@ -59,8 +55,6 @@ def test_a_parking_brake_stronger_than_the_tyres_can_give_is_refused(decel_mps2:
         vehicle_from_data(data)
 
 
-@pytest.mark.xfail(strict=True, reason="engine_brake_decel_mps2 on a gear of direction 0 "
-                   "(neutral, park) is accepted and silently ignored")
 @pytest.mark.parametrize("gear_name", ["neutral", "park"])
 def test_engine_braking_on_a_gear_that_does_not_drive_is_refused(gear_name: str) -> None:
     """Measured (2026-11-26): the Escape's neutral with 3.0 m/s^2 of engine braking loads; the

@@ -95,3 +95,29 @@ def test_a_speed_server_emergency_stop_latches_until_a_new_authorization(preset:
     assert 9.0 <= travel_after_m(result, 20.0) <= 10.0
     assert any(e["kind"] == "latched" and e["source"] == "driving"
                and e["code"].startswith("speed_stop") for e in result.summary["events"])
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_an_authorization_sent_before_the_release_and_delivered_after_it_is_held(
+        preset: str) -> None:
+    """Sent at 11.8 s, 0.2 s before the release, delayed 0.4 s on the way: it arrived after
+    the release and drove 29.8 m (judge: unintended_motion). Only one issued after it counts."""
+    result = drive(preset, "pause", [
+        {"at_s": 11.7, "delay": {"channel": "advance", "for_s": 0.2, "delay_s": 0.4}},
+        {"at_s": 11.8, "advance": {"source": "lidar", "distance_m": 40}}])
+    assert travel_after_m(result, OFF_S) <= STILL_M
+    assert result.summary["violations"] == []
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_each_source_is_released_only_by_its_own_authorization_after_the_release(
+        preset: str) -> None:
+    """Two sources authorized before the pause; after it only the map sends anew: the lidar's
+    old 60 m stays held at 0 (the most restrictive applies), so nothing moves; once the lidar
+    sends 8 m too, the vehicle drives the shorter of the two."""
+    result = drive(preset, "pause", [
+        {"at_s": 1, "advance": {"source": "map", "distance_m": 80}},
+        {"at_s": 14.0, "advance": {"source": "map", "distance_m": 30}},
+        {"at_s": 20.0, "advance": {"source": "lidar", "distance_m": 8}}], duration_s=40.0)
+    assert travel_after_m(result, OFF_S) - travel_after_m(result, 20.0) <= STILL_M
+    assert 7.0 <= travel_after_m(result, 20.0) <= 8.0

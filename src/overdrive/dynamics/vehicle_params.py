@@ -197,8 +197,8 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "position_step_m": (0.01, 100.0, "RTK ~0.02 m noise to standalone GPS ~5 m"),
     "position_step_sigmas": (3.0, 100.0, "a step is at least 3 sigma of the reported noise"),
     "heading_step_rad": (0.001, 3.2, "INS heading noise ~0.002-0.02 rad"),
-    "park_brake_decel_mps2": (0.0, 10.0, "0: none; a parking brake on one axle gives at most "
-                                         "that axle's share of ~1 g"),
+    "park_brake_decel_mps2": (0.0, 9.8, "0: none; a parking brake on one axle gives at most "
+                                        "that axle's share of ~1 g"),
     "park_brake_apply_s": (0.01, 10.0, "electric parking brakes ~0.5-1 s, a lever actuator a "
                                        "few seconds"),
     "park_brake_max_apply_mps": (0.0, 70.0, "0: only at rest; up to the fastest speed driven"),
@@ -343,6 +343,11 @@ def _check_consistent(params: VehicleParams, given: set[str]) -> None:
         field = "idle_rpm" if "idle_rpm" in given else "redline_rpm"
         raise VehicleSpecError(field, f"idle_rpm {params.idle_rpm:g} must be below redline_rpm "
                                       f"{params.redline_rpm:g}")
+    for i, gear in enumerate(params.gears):
+        if gear.direction == 0 and gear.engine_brake_decel_mps2 > 0.0:
+            raise VehicleSpecError(f"gears[{i}].engine_brake_decel_mps2",
+                                   f"{gear.name!r} does not drive (direction 0): it has no "
+                                   f"engine braking")
 
 
 def with_overrides(base: VehicleParams, overrides: Mapping[Any, Any]) -> VehicleParams:
@@ -388,6 +393,12 @@ def vehicle_from_data(data: Any) -> VehicleParams:
     values = {k: data[k] for k in PARAMETERS if k in data}
     for key, value in values.items():
         _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+    if (values.get("park_brake_decel_mps2", 0.0) > 0.0
+            and values.get("park_brake_max_apply_mps", 0.0) > 0.0
+            and "park_brake_apply_s" not in values):
+        raise VehicleSpecError("park_brake_apply_s", "required for a parking brake that may brake "
+                                                     "a moving vehicle (it sets the ramp the "
+                                                     "stop and the judge's distance use)")
     gears = _gears_from_data(data["gears"])
     params = msgspec.convert({"preset": data["name"], **values, "gears": gears}, VehicleParams)
     _check_roles(params)

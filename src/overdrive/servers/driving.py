@@ -575,6 +575,9 @@ class DrivingModule:
         self._speed_stops: tuple[int, float] | None = None   # (unasked_stops, started_s) seen
         self._speed_stop_cause = ""   # a rise or a restart seen since the last step
         self._held_noticed: set[tuple[str, bool]] = set()   # sources told they are held
+        self._latched: set[str] = set()   # sources held until their own authorization after
+        self._release_s: float | None = None   # ... the vehicle came back (or the stop, when
+                                                 # the vehicle never left drive-by-wire)
 
     # ------------------------------------------------------------------ inputs
 
@@ -684,9 +687,9 @@ class DrivingModule:
                     distance_m = 0.0   # lost once: held until it says it knows (it sends 0)
                 else:
                     del self.traffic_lost[msg.source]
-            if self.interrupted and distance_m > 0.0:
-                if self._vehicle_ok:
-                    self._resume(msg.source, out)   # a new authorization after the release
+            if distance_m > 0.0 and (self.interrupted or msg.source in self._latched):
+                if self._after_release(msg.issued_s, now_s):
+                    self._resume(msg.source, out)   # its own authorization after the release
                 else:
                     distance_m = self._held(msg.source, msg.reverse, out)
             self.authorizations.update(msg.source, msg.reverse, distance_m, odometer0)
@@ -729,7 +732,7 @@ class DrivingModule:
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code="command_silence", reason=why)))
 
-    def _watch_interruptions(self, out: list) -> None:
+    def _watch_interruptions(self, now_s: float, out: list) -> None:
         """Issue 31 (seed 000's pause, override, e-stop and door; seed 004's "nothing moves until
         a new command"): the vehicle leaving drive-by-wire or computer speed control, or a stop
         the speed server made on its own (a rise of ``SpeedState.unasked_stops``, a restart),
@@ -749,9 +752,13 @@ class DrivingModule:
             if self.interrupted and (status.engine != "running"
                                      or status.safety_mode in ENGINE_CUT_MODES):
                 self.hold_state = "parked"
+            if ok and self._latched and self._release_s is None:
+                self._release_s = now_s   # the vehicle is back: what is issued from now counts
         if not cause:
             return
         held = sorted({source for source, _ in self.authorizations.by_source})
+        self._latched.update(held)
+        self._release_s = now_s if self._vehicle_ok is not False else None
         for source, rev in list(self.authorizations.by_source):
             self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
             if source in self.config.streaming_sources:
@@ -769,8 +776,21 @@ class DrivingModule:
                        f"at 0, the speed server asked for {self.hold_state}; nothing moves "
                        f"until a new authorization after the vehicle is back")))
 
+    def _after_release(self, issued_s: float | None, now_s: float) -> bool:
+        """True for an authorization sent after the interruption ended: issued after the vehicle
+        came back (after the stop, when it never left drive-by-wire); an unstamped one, arrived
+        a full SPSS period after that (one sent before and delayed is held)."""
+        release_s = self._release_s
+        if release_s is None or not self._vehicle_ok:
+            return False
+        if issued_s is not None:
+            return issued_s > release_s
+        return now_s >= release_s + self.config.spss_period_s - TIME_EPS_S
+
     def _held(self, source: str, reverse: bool, out: list) -> float:
-        """An authorization that arrives during an interruption: held at 0 (noticed once)."""
+        """An authorization that arrives during an interruption, or one sent before its end:
+        held at 0 (noticed once per source), its source latched until it sends anew."""
+        self._latched.add(source)
         if (source, reverse) not in self._held_noticed:
             self._held_noticed.add((source, reverse))
             self._reject("advance", f"advance from {source!r} held at 0: interrupted "
@@ -779,13 +799,18 @@ class DrivingModule:
         return 0.0
 
     def _resume(self, source: str, out: list) -> None:
-        """The first authorization after the release: the interruption's latch ends."""
+        """A source's own authorization after the release: that source is free; the first
+        one ends the interruption's latch (the speed server is asked for run again). Other
+        latched sources stay held at 0 until they send anew (the most restrictive applies)."""
+        self._latched.discard(source)
+        self._held_noticed = {k for k in self._held_noticed if k[0] != source}
+        if not self.interrupted:
+            return
         out.append((Topic.NOTICE, Notice(
             kind="resumed", source=SOURCE, code=self.interrupted,
             reason=f"a new authorization from {source!r} after the interruption "
                    f"({self.interrupted}): driving again")))
         self.interrupted = ""
-        self._held_noticed.clear()
 
     def _source_remaining_m(self, source: str, reverse: bool) -> float:
         """What is left of one source's authorization for a direction (0 when it has none)."""
@@ -831,7 +856,10 @@ class DrivingModule:
             self.speed_state = msg
             if msg.hint == "slipping":
                 self._slip(now_s)
-            seen, self._speed_stops = self._speed_stops, (msg.unasked_stops, msg.started_s)
+            seen = self._speed_stops
+            if seen is None or msg.started_s != seen[1] or msg.unasked_stops > seen[0]:
+                # (a report older than the last, delivered late, never lowers the count seen)
+                self._speed_stops = (msg.unasked_stops, msg.started_s)
             if seen is not None and msg.started_s != seen[1]:
                 self._speed_stop_cause = "speed_restart"
             elif seen is not None and msg.unasked_stops > seen[0]:
@@ -872,7 +900,7 @@ class DrivingModule:
         if self.gps is not None:
             self.history.record(now_s, self._progress_m(False))
             self.history_reverse.record(now_s, self._progress_m(True))
-        self._watch_interruptions(out)
+        self._watch_interruptions(now_s, out)
         if self._arrived:
             self._apply_advances(now_s, out)
         p, cfg = self.params, self.config
