@@ -96,8 +96,7 @@ class SecondaryBrakingAudit:
         if msg.source != "speed" or msg.kind != "fault":
             return
         if msg.code in THROTTLE_FAULT_CODES:
-            if not self.throttle_failed:
-                self.throttle_failed_s = now_s
+            self.throttle_failed_s = min(self.throttle_failed_s, now_s)   # the first one
             self.throttle_failed = True
         elif msg.code in BRAKE_LOST_CODES and self.start is None:
             gear = self.gear_cmd or self.gears.get(self.params.drive_gear)
