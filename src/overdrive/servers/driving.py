@@ -426,6 +426,11 @@ class Request(msgspec.Struct, frozen=True):
     drive: bool = False     # the goal speed may be sent (else speed 0)
 
 
+def _engine_off(status: VehicleStatus) -> bool:
+    """The vehicle's engine is off or about to be (seed 000: e-stop disable, inactive)."""
+    return status.engine != "running" or status.safety_mode in ENGINE_CUT_MODES
+
+
 def client_request(target: str, server_state: str, server_gear: str, want_gear: str,
                    stopped: bool, last: Request | None) -> Request:
     """What to ask the speed server for next, from ``REQUEST_TOWARD`` plus the gear rules.
@@ -740,7 +745,8 @@ class DrivingModule:
         sends 0, as after a loss of command traffic) and the speed server is asked for
         ``paused`` (``parked`` once the engine is off), so a client of this module that keeps
         its old authorization, or re-sends it during the interruption, never drives on after
-        the release. Only an authorization that arrives once the vehicle is back releases it."""
+        the release. Each source is released only by its own authorization issued after the
+        vehicle came back (``_after_release``)."""
         status = self.vehicle_status
         cause, self._speed_stop_cause = self._speed_stop_cause, ""
         if status is not None:
@@ -749,8 +755,7 @@ class DrivingModule:
             if was_ok and not ok:
                 cause = status.safety_mode if status.computer_speed \
                     else f"{status.safety_mode}, no computer speed control"
-            if self.interrupted and (status.engine != "running"
-                                     or status.safety_mode in ENGINE_CUT_MODES):
+            if self.interrupted and _engine_off(status):
                 self.hold_state = "parked"
             if ok and self._latched and self._release_s is None:
                 self._release_s = now_s   # the vehicle is back: what is issued from now counts
@@ -759,13 +764,8 @@ class DrivingModule:
         held = sorted({source for source, _ in self.authorizations.by_source})
         self._latched.update(held)
         self._release_s = now_s if self._vehicle_ok is not False else None
-        for source, rev in list(self.authorizations.by_source):
-            self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
-            if source in self.config.streaming_sources:
-                self.traffic_lost[source] = f"interrupted ({cause})"
-        engine_off = status is not None and (status.engine != "running"
-                                             or status.safety_mode in ENGINE_CUT_MODES)
-        self.hold_state = "parked" if engine_off else "paused"
+        self._hold_every_source(f"interrupted ({cause})")
+        self.hold_state = "parked" if status is not None and _engine_off(status) else "paused"
         self._held_noticed.clear()
         already = self.interrupted
         self.interrupted = cause
@@ -775,6 +775,14 @@ class DrivingModule:
                 reason=f"interrupted ({cause}): authorizations of {held or 'no source'} held "
                        f"at 0, the speed server asked for {self.hold_state}; nothing moves "
                        f"until a new authorization after the vehicle is back")))
+
+    def _hold_every_source(self, why: str) -> None:
+        """Every authorization held at 0; a streaming source until it sends 0 (``traffic_lost``:
+        it knows it lost the vehicle), so nothing it streams on moves the vehicle."""
+        for source, rev in list(self.authorizations.by_source):
+            self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
+            if source in self.config.streaming_sources:
+                self.traffic_lost[source] = why
 
     def _after_release(self, issued_s: float | None, now_s: float) -> bool:
         """True for an authorization sent after the interruption ended: issued after the vehicle
@@ -1093,16 +1101,12 @@ class DrivingModule:
         until it sends 0 (the move server discards its command), so nothing moves again
         until the planner sends a new command that fits the smaller ellipse. True when it
         starts (send the SPSS now)."""
-        cfg = self.config
         why = (f"grip lost in a curve: traction control active, the vehicle turns short of the "
                f"command; lateral demand {demand_mps2:.2f} m/s^2 (ellipse's lateral axis "
                f"{lat_axis_mps2:.2f} m/s^2) at "
                f"{v:.2f} m/s: braking with everything, curvature held; nothing moves until a "
                f"new command")
-        for source, rev in list(self.authorizations.by_source):
-            self.authorizations.update(source, rev, 0.0, self._progress_m(rev))
-            if source in cfg.streaming_sources:
-                self.traffic_lost[source] = why
+        self._hold_every_source(why)
         self.hard_brake = True
         self.unasked_stops += 1
         self.last_unasked_stop = "grip_lost"
