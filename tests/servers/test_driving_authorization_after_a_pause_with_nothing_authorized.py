@@ -50,8 +50,8 @@ def test_the_first_authorization_after_a_pause_at_rest_drives(preset: str,
     """Measured 2026-11-26 (this file): with nothing authorized before the pause, the lidar's
     10 m sent 2 s after the release drove 0.000 m on both presets (a `rejected` notice "held at
     0" at 14.0 s, the latch never `resumed`); sent again at 16 s it drove 9.79 m, first motion
-    at 27.0 s (escape-hybrid). With 5 m authorized (and driven) before the pause the same 10 m at 14 s drove
-    9.82 m (escape-hybrid) / 9.79 m (ranger-6x6)."""
+    at 27.0 s (escape-hybrid). With 5 m authorized (and driven) before the pause the same 10 m
+    at 14 s drove 9.82 m (escape-hybrid) / 9.79 m (ranger-6x6)."""
     result = paused_at_rest(preset, before_m)
     moved_m = travel_after_m(result, SEND_S)
     assert 9.0 <= moved_m <= 10.0, moved_m      # stops before its end (margin), never past it
