@@ -200,12 +200,15 @@ class DrivingStatus(Message, frozen=True):
     rejected: str = ""             # reason of the last rejected input, "" if none
     unasked_stops: int = 0         # stops the module made on its own since it started (loss of
                                    # command traffic: a streaming source silent beyond its
-                                   # bound; grip lost in a curve); never reset: the move server latches on any
-                                   # increase, so a lost DrivingStatus cannot hide one
+                                   # bound; grip lost in a curve; an interruption it latched);
+                                   # never reset: the move server latches on any increase, so
+                                   # a lost DrivingStatus cannot hide one
     started_s: float = 0.0         # this module's first step: a change is a restart (its count
                                    # starts again from 0)
-    last_unasked_stop: str = ""    # the newest unasked stop's cause: "command_silence" or
-                                   # "grip_lost" (a curve that no longer fits the ellipse)
+    last_unasked_stop: str = ""    # the newest unasked stop's cause: "command_silence",
+                                   # "grip_lost" (a curve that no longer fits the ellipse) or
+                                   # "interrupted" (the vehicle left drive-by-wire, the speed
+                                   # server stopped on its own)
 
 
 # --------------------------------------------------------------------------- speed server (seed 001)

@@ -1,12 +1,11 @@
 """Over JAUS, a SafeStop pause or a manual override already in force when the stack connects
 latches like one that starts later (issue 31; seed 000: a pause "brings the vehicle to a
-stop", seed 004: nothing moves until a new command). The driving module takes a vehicle first
-seen out of drive-by-wire as no interruption, because an XGV reports a software pause until
-the client holds control (docs/driving-module.md, "Left open"); but the XGV reports an
-operator's pause or override apart from that software pause (``estop-pause``,
-``manual-override``), and with either held from the start an authorization issued during it
-drives the vehicle off at the release, with no runwait. Embedded, the first status comes
-before the pause and the same run latches. Judged from the plant's own x/y and the judge."""
+stop", seed 004: nothing moves until a new command). The driving module once took a vehicle
+first seen out of drive-by-wire as no interruption, because an XGV reports a software pause
+until the client holds control; but the XGV reports an operator's pause or override apart from
+that software pause (``estop-pause``, ``manual-override``), and with either held from the start
+an authorization issued during it drove the vehicle off at the release (59.8 m, no runwait).
+Entering any mode but the software pause now latches, from the first status on. Judged from the plant's own x/y and the judge."""
 
 from __future__ import annotations
 
@@ -46,17 +45,11 @@ def travel_after_m(result, t0_s: float) -> float:
                for a, b in itertools.pairwise(rows))
 
 
-FROM_START_OVER_JAUS = pytest.mark.xfail(strict=True, reason=(
-    "over JAUS the first status already shows the operator's pause/override: no interruption "
-    "latched, the lidar's 60 m issued during it drives 59.8 m from 0.35 s after the release, "
-    "no runwait (judge: unintended_motion)"))
-
-
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("kind", sorted(HELD))
 @pytest.mark.parametrize("interface", [
     "embedded",     # reference: the first status is drive-by-wire, the pause latches
-    pytest.param("jaus", marks=FROM_START_OVER_JAUS),
+    "jaus",
 ])
 def test_an_authorization_issued_during_a_pause_held_from_the_start_never_drives(
         preset: str, kind: str, interface: str) -> None:

@@ -1,8 +1,9 @@
 """A pause the driving module receives inside one step's inbox, followed in the same inbox by the
-status of a vehicle back in drive-by-wire, still latches (issue 31, seed 000's pause). The
-module keeps only the last ``VehicleStatus`` of a step and looks for the edge once per step, so
-a short pause read together with its end (a step that came 20-40 ms late, as a stalled or
-descheduled process steps once with its queue) is never seen: the old authorization drives on.
+status of a vehicle back in drive-by-wire, still latches (issue 31, seed 000's pause). When the
+module kept only the last ``VehicleStatus`` of a step and looked for the edge once per step, a
+short pause read together with its end (a step that came 20-40 ms late, as a stalled or
+descheduled process steps once with its queue) was never seen: the old authorization drove on.
+Each status is now looked at on its own (``DrivingModule._interruption_edge``).
 Judged from the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
@@ -39,18 +40,12 @@ def travel_after_m(result, t0_s: float) -> float:
                for a, b in itertools.pairwise(rows))
 
 
-ONE_STEP = pytest.mark.xfail(strict=True, reason=(
-    "the driving module looks at the last VehicleStatus of a step only: a pause and its end "
-    "read in one inbox are no interruption; the old 60 m authorization drives on "
-    "(48.5-48.9 m of unintended motion judged)"))
-
-
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize(("pause_s", "stall"), [
     (0.01, None),                                     # reference: every status in its own step
     (0.01, (4.99, 0.02)),                             # a 20 ms step ending on the pause
-    pytest.param(0.01, (4.99, 0.03), marks=ONE_STEP),   # 10 ms pause, 30 ms step
-    pytest.param(0.02, (4.98, 0.05), marks=ONE_STEP),   # 20 ms pause, 50 ms step
+    (0.01, (4.99, 0.03)),                             # 10 ms pause, 30 ms step
+    (0.02, (4.98, 0.05)),                             # 20 ms pause, 50 ms step
 ], ids=["10ms-own-steps", "10ms-late-step-ends-on-it", "10ms-in-a-30ms-step", "20ms-in-a-50ms-step"])
 def test_a_pause_read_in_one_step_with_its_end_still_latches(preset: str, pause_s: float,
                                                            stall: tuple[float, float] | None

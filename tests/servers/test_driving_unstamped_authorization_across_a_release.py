@@ -1,9 +1,11 @@
 """An authorization without a stamp (``issued_s`` None) sent before a pause ends and delivered
 after it never drives (issue 31: each source is released only by its own authorization issued
-after the vehicle came back). The module takes an unstamped one as issued after the release
-when it arrives a full SPSS period (0.1 s) after it: one sent 50 ms before the release and
-delayed 0.2 s on the way counts as new and drives the vehicle on. One sent after the release
-still drives (availability). Judged from the plant's own x/y and the run's judge."""
+after the vehicle came back). An unstamped one cannot show when it was sent: one sent 50 ms
+before the release and delayed 0.2 s drove the vehicle on 29.8 m when the module took anything
+arriving a full SPSS period after the release as new. It counts only after its source's 0
+arrived after the release (the source knows the vehicle stopped; docs/driving-module.md). One
+sent after the release, after a 0, still drives (availability); without the 0 it is held and
+its source told so. Judged from the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
 
@@ -65,33 +67,37 @@ def travel_after_m(result, t0_s: float) -> float:
                for a, b in itertools.pairwise(rows))
 
 
-DELIVERED_LATE = pytest.mark.xfail(strict=True, reason=(
-    "an unstamped authorization arriving 0.1 s after the release counts as issued after it: "
-    "sent 50 ms before the release and delayed 0.2-0.5 s it drives 21.5-30 m (judge: "
-    "unintended_motion)"))
-
-
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("delay_s", [
-    0.05, 0.15,     # references: delivered within the SPSS period of the release, held
-    pytest.param(0.2, marks=DELIVERED_LATE),
-    pytest.param(0.5, marks=DELIVERED_LATE),
+    0.05, 0.15,     # delivered within the SPSS period of the release
+    0.2, 0.5,       # delivered later: drove 21.5-30 m when anything that late counted as new
 ])
 def test_an_unstamped_authorization_sent_before_the_release_never_drives(preset: str,
                                                                         delay_s: float) -> None:
-    """Measured 2026-11-26 (this file): 40 m sent unstamped at 11.95 s, delayed 0.2 s, was
-    taken at 12.15 s (`resumed`) and drove 29.8 m by 30 s on escape-hybrid (23.3 m on
-    ranger-6x6), still at 6 m/s; delayed 0.5 s, 28.0 m (21.5 m). Delayed 0.05 s or 0.15 s it
-    arrived before 12.1 s and was held: 0 m."""
+    """Measured 2026-11-26 (this file) before the fix: 40 m sent unstamped at 11.95 s, delayed
+    0.2 s, was taken at 12.15 s (`resumed`) and drove 29.8 m by 30 s on escape-hybrid (23.3 m on
+    ranger-6x6); delayed 0.5 s, 28.0 m (21.5 m). Now held: 0 m."""
     result = paused(preset, [(11.95, 40.0)], delay_s)
     assert travel_after_m(result, RELEASE_S) <= STILL_M
     assert result.summary["violations"] == []
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-def test_an_unstamped_authorization_sent_after_the_release_drives(preset: str) -> None:
-    """Reference (availability): 10 m sent unstamped 2 s after the release drives 9.79 m
-    (both presets; through two runwaits)."""
-    result = paused(preset, [(14.0, 10.0)], None, duration_s=40.0)
+def test_an_unstamped_authorization_after_a_zero_after_the_release_drives(preset: str) -> None:
+    """Availability: 0 then 10 m sent unstamped 2 s after the release drive 9.79 m (both
+    presets; through two runwaits)."""
+    result = paused(preset, [(14.0, 0.0), (14.05, 10.0)], None, duration_s=40.0)
     assert 9.0 <= travel_after_m(result, 14.0) <= 10.0
     assert result.summary["violations"] == []
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_an_unstamped_authorization_without_a_zero_is_held_and_its_source_told(
+        preset: str) -> None:
+    """10 m sent unstamped 2 s after the release, with no 0 before it: held (0 m), and the
+    source is told to stamp it or send 0 first (never a silent hold)."""
+    result = paused(preset, [(14.0, 10.0)], None, duration_s=20.0)
+    assert travel_after_m(result, 14.0) <= STILL_M
+    held = [e for e in result.summary["events"] if e.get("kind") == "rejected"
+            and "held at 0" in e.get("reason", "") and "after a 0" in e.get("reason", "")]
+    assert held, result.summary["events"]

@@ -569,7 +569,7 @@ class DrivingModule:
         self.heard_s: dict[str, float] = {}       # streaming source -> running_s last heard
         self.traffic_lost: dict[str, str] = {}    # streaming source -> why it is held at 0
         self.unasked_stops = 0  # stops made on its own since the start (DrivingStatus)
-        self.last_unasked_stop = ""   # the newest one's cause: command_silence | grip_lost
+        self.last_unasked_stop = ""   # the newest one's cause (DrivingStatus.last_unasked_stop)
         self._drift_rad = 0.0   # heading lost to sliding in a curve (issue 30, _sliding) ...
         self._drift_m = 0.0     # ... and the distance outside the curve it made
         # interruptions (issue 31, _watch_interruptions): latched until a new authorization
@@ -583,6 +583,9 @@ class DrivingModule:
         self._latched: set[str] = set()   # sources held until their own authorization after
         self._release_s: float | None = None   # ... the vehicle came back (or the stop, when
                                                  # the vehicle never left drive-by-wire)
+        self._zero_after_release: set[str] = set()   # sources whose 0 arrived after it
+        self._vehicle_key: tuple[str, bool] | None = None   # (safety mode, computer speed) seen
+        self._status_cause = ""   # an interruption seen in this step's statuses
 
     # ------------------------------------------------------------------ inputs
 
@@ -692,8 +695,10 @@ class DrivingModule:
                     distance_m = 0.0   # lost once: held until it says it knows (it sends 0)
                 else:
                     del self.traffic_lost[msg.source]
+            if distance_m <= 0.0 and self._release_s is not None and self._vehicle_ok:
+                self._zero_after_release.add(msg.source)   # it knows: see _after_release
             if distance_m > 0.0 and (self.interrupted or msg.source in self._latched):
-                if self._after_release(msg.issued_s, now_s):
+                if self._after_release(msg.source, msg.issued_s, now_s):
                     self._resume(msg.source, out)   # its own authorization after the release
                 else:
                     distance_m = self._held(msg.source, msg.reverse, out)
@@ -737,6 +742,21 @@ class DrivingModule:
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code="command_silence", reason=why)))
 
+    def _interruption_edge(self, status: VehicleStatus) -> None:
+        """Each status on its own (a pause and its end read in one step's inbox still latch): the
+        vehicle leaving drive-by-wire or computer speed control, or, before it was ever seen in
+        drive-by-wire, entering an operator's interruption (a SafeStop pause, an override, an
+        e-stop, a door: anything but the XGV's software pause, which only says no client holds
+        control yet) is the step's cause, the first one kept."""
+        ok = status.safety_mode == "drive-by-wire" and status.computer_speed
+        key = (status.safety_mode, status.computer_speed)
+        was_ok, self._vehicle_ok = self._vehicle_ok, ok
+        last_key, self._vehicle_key = self._vehicle_key, key
+        entered = (was_ok is True or (key != last_key and status.safety_mode != "software-pause"))
+        if not ok and entered and not self._status_cause:
+            self._status_cause = status.safety_mode if status.computer_speed \
+                else f"{status.safety_mode}, no computer speed control"
+
     def _watch_interruptions(self, now_s: float, out: list) -> None:
         """Issue 31 (seed 000's pause, override, e-stop and door; seed 004's "nothing moves until
         a new command"): the vehicle leaving drive-by-wire or computer speed control, or a stop
@@ -748,27 +768,29 @@ class DrivingModule:
         the release. Each source is released only by its own authorization issued after the
         vehicle came back (``_after_release``)."""
         status = self.vehicle_status
-        cause, self._speed_stop_cause = self._speed_stop_cause, ""
+        cause = self._speed_stop_cause or self._status_cause
+        self._speed_stop_cause = self._status_cause = ""
         if status is not None:
-            ok = status.safety_mode == "drive-by-wire" and status.computer_speed
-            was_ok, self._vehicle_ok = self._vehicle_ok, ok
-            if was_ok and not ok:
-                cause = status.safety_mode if status.computer_speed \
-                    else f"{status.safety_mode}, no computer speed control"
             if self.interrupted and _engine_off(status):
                 self.hold_state = "parked"
-            if ok and self._latched and self._release_s is None:
+            if self._vehicle_ok and (self._latched or self.interrupted) \
+                    and self._release_s is None:
                 self._release_s = now_s   # the vehicle is back: what is issued from now counts
         if not cause:
             return
         held = sorted({source for source, _ in self.authorizations.by_source})
         self._latched.update(held)
         self._release_s = now_s if self._vehicle_ok is not False else None
+        self._zero_after_release.clear()
         self._hold_every_source(f"interrupted ({cause})")
         self.hold_state = "parked" if status is not None and _engine_off(status) else "paused"
         self._held_noticed.clear()
         already = self.interrupted
         self.interrupted = cause
+        # an unasked stop for the move server too (DrivingStatus): one that missed the
+        # interruption ends its command and streams 0, so its next command drives
+        self.unasked_stops += 1
+        self.last_unasked_stop = "interrupted"
         if not already:
             out.append((Topic.NOTICE, Notice(
                 kind="latched", source=SOURCE, code=cause,
@@ -784,16 +806,19 @@ class DrivingModule:
             if source in self.config.streaming_sources:
                 self.traffic_lost[source] = why
 
-    def _after_release(self, issued_s: float | None, now_s: float) -> bool:
+    def _after_release(self, source: str, issued_s: float | None, now_s: float) -> bool:
         """True for an authorization sent after the interruption ended: issued after the vehicle
-        came back (after the stop, when it never left drive-by-wire); an unstamped one, arrived
-        a full SPSS period after that (one sent before and delayed is held)."""
+        came back (after the stop, when it never left drive-by-wire). An unstamped one cannot
+        show when it was sent (one sent during the pause and delayed past the release drove
+        29.8 m): it counts only once its source sent 0 that arrived after the release (it knows
+        the vehicle stopped), and a full SPSS period after the release."""
         release_s = self._release_s
         if release_s is None or not self._vehicle_ok:
             return False
         if issued_s is not None:
             return issued_s > release_s
-        return now_s >= release_s + self.config.spss_period_s - TIME_EPS_S
+        return source in self._zero_after_release \
+            and now_s >= release_s + self.config.spss_period_s - TIME_EPS_S
 
     def _held(self, source: str, reverse: bool, out: list) -> float:
         """An authorization that arrives during an interruption, or one sent before its end:
@@ -803,7 +828,7 @@ class DrivingModule:
             self._held_noticed.add((source, reverse))
             self._reject("advance", f"advance from {source!r} held at 0: interrupted "
                                     f"({self.interrupted}); send it again once the vehicle "
-                                    f"is back", out)
+                                    f"is back (stamped with issued_s, or after a 0)", out)
         return 0.0
 
     def _resume(self, source: str, out: list) -> None:
@@ -877,6 +902,7 @@ class DrivingModule:
     def _vehicle_status(self, now_s: float, msg: Any, out: list) -> None:
         if isinstance(msg, VehicleStatus):
             self.vehicle_status = msg
+            self._interruption_edge(msg)
             if finite(msg.steer_pct):
                 self.steer_status = msg
             if msg.traction_control is True:

@@ -242,6 +242,10 @@ class MoveServer:
         self.curvature_1pm = 0.0
         self.engaged = False            # a MOVE/REVERSE has been accepted: keep the engine up
         self.hold_state: str | None = None
+        self.away_mode = ""     # a safety mode other than drive-by-wire seen since the last step
+        self.back_s: float | None = None   # when the vehicle came back after the newest
+                                           # interruption (inf while away): what was issued
+                                           # before is not a new command (_issued_before_back)
         # e-stop
         self.latched = False
         self.fault_active = False
@@ -372,6 +376,14 @@ class MoveServer:
     def _status(self, now_s: float, msg: VehicleStatus, out: list) -> None:
         if finite(msg.steer_pct, msg.throttle_pct, msg.brake_pct):
             self.status = msg
+            # each status on its own: a pause and its end read in one step still interrupt
+            if not (msg.safety_mode == "drive-by-wire" and msg.computer_speed):
+                if not self.away_mode:
+                    self.away_mode = msg.safety_mode if msg.computer_speed \
+                        else f"{msg.safety_mode}, no computer speed control"
+                self.back_s = math.inf
+            elif self.back_s == math.inf:
+                self.back_s = now_s
         else:
             self._finite_sensor(False, "vehicle_status: not finite", out)
 
@@ -616,7 +628,7 @@ class MoveServer:
             self._restrict(now_s, cmd, command_id, stale, out)
             return
         if verdict is None:
-            verdict = self._too_steep_to_plan(cmd)
+            verdict = self._issued_before_back(cmd, now_s) or self._too_steep_to_plan(cmd)
         odometer0_m = self.progress_m(direction_of(kind))
         if verdict is None and cmd.issued_s is not None:
             anchored, why, clock = self._anchor(kind, cmd, now_s)
@@ -667,6 +679,22 @@ class MoveServer:
         self.active = ActiveCommand(cmd, direction, odometer0_m)
         self.hold_clear_since_accept = False   # a "failed" hold from before is not this command's
         self._set_phase(next_phase(self.phase, event))
+
+    def _issued_before_back(self, cmd: MoveCommand, now_s: float) -> Verdict | None:
+        """``not_ready`` for a MOVE / REVERSE issued before the vehicle came back from the newest
+        interruption (before the stop, for a stop of the stack's own): sent during it and
+        delivered late, it is not the new command that releases the latch (a MOVE issued 0.1 s
+        before a release and delivered 0.3 s late drove its 40 m). An unstamped one cannot
+        show when it was sent and is taken as new (docs/move-server.md)."""
+        back_s = self.back_s
+        if back_s is None or cmd.issued_s is None or back_s == math.inf:
+            return None
+        issued_s = self.planner_clock.placed_s(cmd, now_s)
+        if issued_s is None or issued_s > back_s:
+            return None
+        return Verdict("not_ready", f"issued at t={issued_s:.3f} s, before the vehicle came back "
+                                    f"from the interruption at t={back_s:.3f} s: not a new "
+                                    "command; send it again")
 
     def _time_refusal(self, command_id: int, kind: str, why: str, out: list) -> None:
         """Refused for the planner's clock (code ``clock``); the fault when that persists."""
@@ -832,7 +860,7 @@ class MoveServer:
         self.remaining_m = self._remaining()
         if self._collision_check(now_s, out):
             return "estop"
-        if self._interruption(out):
+        if self._interruption(now_s, out):
             return "interrupt"
         phase = self.phase
         if phase == "estopped":
@@ -872,7 +900,7 @@ class MoveServer:
                                          reason=self.failure_reason)))
         return True
 
-    def _interruption(self, out: list) -> bool:
+    def _interruption(self, now_s: float, out: list) -> bool:
         """True on the period an engaged vehicle is interrupted: the command is discarded.
 
         An interruption is the vehicle leaving drive-by-wire or speed control (seed 000), or a
@@ -889,9 +917,13 @@ class MoveServer:
         stop_cause, self.speed_stop_cause = self.speed_stop_cause, ""
         driving_stops, self.driving_stops = self.driving_stops, 0
         gap_s, self.stall_gap_s = self.stall_gap_s, 0.0
+        away, self.away_mode = self.away_mode, ""
         at_stake = self.active is not None or abs(self.speed_mps) >= self.config.standstill_mps
         stalled = gap_s > 0.0 and at_stake
-        if self._interrupted(status, stop_code, stop_cause, driving_stops, stalled, gap_s, out):
+        if self._interrupted(status, away, stop_code, stop_cause, driving_stops, stalled, gap_s,
+                             out):
+            if self.back_s != math.inf:
+                self.back_s = now_s   # a stop of the stack's own: what came before is old
             return True
         if gap_s > 0.0:   # no silent pass: a stall that interrupted nothing is still a fault
             out.append((Topic.NOTICE, Notice(
@@ -902,12 +934,13 @@ class MoveServer:
                        f", {abs(self.speed_mps):.2f} m/s)")))
         return False
 
-    def _interrupted(self, status: VehicleStatus | None, stop_code: int, stop_cause: str,
-                     driving_stops: int, stalled: bool, gap_s: float, out: list) -> bool:
+    def _interrupted(self, status: VehicleStatus | None, away: str, stop_code: int,
+                     stop_cause: str, driving_stops: int, stalled: bool, gap_s: float,
+                     out: list) -> bool:
         """``_interruption``'s decision and its notice (the causes taken from this step)."""
         if not self.engaged or self.phase == "estopped" or status is None:
             return False
-        mode_ok = status.safety_mode == "drive-by-wire" and status.computer_speed
+        mode_ok = status.safety_mode == "drive-by-wire" and status.computer_speed and not away
         if mode_ok and not stop_cause and not driving_stops and not stalled:
             return False
         discarded = self.active
@@ -936,6 +969,11 @@ class MoveServer:
                 code = "grip_lost"
                 what_stop = ("the driving module stopped the vehicle: grip lost in a curve "
                              "(the curve no longer fits the shrunk ellipse)")
+            elif self.driving is not None and self.driving.last_unasked_stop == "interrupted":
+                code = "interrupted"
+                what_stop = ("the driving module latched an interruption this server did not "
+                             "see (the vehicle left drive-by-wire or speed control, or the "
+                             "speed server stopped on its own, between two of its steps)")
             else:
                 code = "command_silence"
                 what_stop = ("the driving module stopped the vehicle for loss of command "
@@ -946,11 +984,11 @@ class MoveServer:
                 kind="interrupted", source=SOURCE, code=code,
                 reason=f"{what_stop}: {what}; nothing moves until a new command")))
             return True
+        mode = away or (status.safety_mode if status.computer_speed
+                        else f"{status.safety_mode}, no computer speed control")
         out.append((Topic.NOTICE, Notice(
-            kind="interrupted", source=SOURCE, code=status.safety_mode,
-            reason=f"safety mode {status.safety_mode}"
-                   f"{'' if status.computer_speed else ', no computer speed control'}: {what}; "
-                   f"nothing moves until a new command")))
+            kind="interrupted", source=SOURCE, code=mode.split(",")[0],
+            reason=f"safety mode {mode}: {what}; nothing moves until a new command")))
         return True
 
     def _collision_check(self, now_s: float, out: list) -> bool:
