@@ -53,7 +53,8 @@ class EnvelopeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw
     rollover_derate: float = 0.25     # seed 003's derate, on g * SSF too: the static factor
                                       # ignores suspension roll and tyre deflection (the CG moves
                                       # outward) and a transient's overshoot, which tip a vehicle
-                                      # below it (NHTSA's fishhook tips vehicles that pass SSF)
+                                      # below it (the 2004 Escape 4x4 tipped up in NHTSA's
+                                      # fishhook test: autos.ca, 10 Aug 2004)
 
 
 DEFAULT_ENVELOPE = EnvelopeConfig()
