@@ -80,6 +80,8 @@ REFERENCE: dict[str, VehicleParams] = {
         max_pitch_rad=math.atan(0.30),
         # issue 30 item 4 (added since): engine braking above, the parking brake here
         park_brake_decel_mps2=2.44, park_brake_apply_s=1.0, park_brake_max_apply_mps=10.0,
+        # issue 31 item 7 (added since): rollover
+        track_width_m=1.54, cg_height_m=0.66,
     ),
     "ranger-6x6": VehicleParams(
         preset="ranger-6x6",
@@ -107,6 +109,8 @@ REFERENCE: dict[str, VehicleParams] = {
         max_pitch_rad=math.atan(0.35),
         # issue 30 item 4 (added since): the parking brake (no engine braking)
         park_brake_decel_mps2=2.0, park_brake_apply_s=1.5, park_brake_max_apply_mps=25.0 * MPH,
+        # issue 31 item 7 (added since): rollover
+        track_width_m=1.22, cg_height_m=0.75,
     ),
 }
 

@@ -62,6 +62,7 @@ class Topic:
     RADAR = "sensors/radar"                  # vehicle -> stack (Radar)
     TRUTH = "sim/truth"                      # simulator ground truth, never read by the stack
     NOTICE = "events"                        # any node -> recorder (Notice)
+    DISPLAY = "display"                      # speed server -> LED sign, runners' console (Display)
     TICK = "process/tick"                    # every process of a launch -> launcher (NodeTick)
 
 
@@ -252,6 +253,24 @@ class SpeedState(Message, frozen=True):
                                    # issue 30 item 4); latched for the server's life
 
 
+class Display(Message, frozen=True):
+    """The fault display (seed 001: "Sending a nonzero fault code will result in a message
+    being displayed in the LED sign"): the speed server's current fault, "" when none.
+
+    Published on every change and re-sent every ``DISPLAY_REFRESH_S`` (a sign or viewer that
+    joins late, or a lost message, is right within that time); ``code`` 0 with ``text`` "" is
+    a blank sign.
+    """
+
+    text: str
+    code: int = 0                  # the fault code shown (1..999 a client's, 1001+ the server's)
+
+
+DISPLAY_REFRESH_S = 1.0
+"""A repeated ``Display`` is re-sent this often: a human reads the sign, so a second is soon
+enough for a late joiner, and 1 message/s instead of the 100/s of a per-period output."""
+
+
 # --------------------------------------------------------------------------- actuators
 
 class PedalCommand(Message, frozen=True):
@@ -411,4 +430,5 @@ ALL_MESSAGES: tuple[type[Message], ...] = (
     MoveCommand, MoveReply, MoveStatus, ClockEstimate, SteeringRequest, MaxSpeed, AdvanceAuthorization,
     DriveMode, DrivingStatus, SetSpeed, SpeedState, PedalCommand, SteerCommand, PowertrainCommand,
     SafetyDevices, VehicleStatus, WheelSpeed, GpsIns, Imu, Radar, Truth, Notice, NodeTick,
+    Display,
 )

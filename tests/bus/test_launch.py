@@ -157,9 +157,10 @@ def test_open_bus_driving_scenario_matches_embedded_run_and_refuses_rogue_sender
 
 
 def _kill_run(scenario: Scenario, run_dir: Path, victim: str, at_s: float,
-              extra: tuple = ()) -> tuple[dict, list[list[str]]]:
+              extra: tuple = (), display: list[str] | None = None) -> tuple[dict, list[list[str]]]:
     result = launch_scenario(scenario, run_dir / "run", listen="", plot=False,
-                             actions=[(at_s, "kill", victim), *extra])
+                             actions=[(at_s, "kill", victim), *extra],
+                             display=display.append if display is not None else None)
     check_undisturbed(result.summary)
     rows = [line.split(",") for line in (run_dir / "run" / "trace.csv").read_text().splitlines()]
     return result.summary, rows
@@ -183,7 +184,8 @@ def test_a_dead_process_stops_the_vehicle_within_its_deadline(run_dir: Path, vic
                                                               timeout_s: float, stopper: str) -> None:
     scenario = parse_scenario({**DRIVING_SCENARIO, "duration_s": 6}, "kill")
     kill_s = 3.0
-    summary, rows = _kill_run(scenario, run_dir, victim, kill_s)
+    display: list[str] = []
+    summary, rows = _kill_run(scenario, run_dir, victim, kill_s, display=display)
     stop_s, speed_mps = _stopped_at_s(rows, kill_s)
     assert speed_mps > 2.0, "the vehicle was driving when the process died"
     # detection + a full-brake stop (>= 0.5 g on dry road) + one period of delivery slack per hop
@@ -194,6 +196,10 @@ def test_a_dead_process_stops_the_vehicle_within_its_deadline(run_dir: Path, vic
     assert estops and estops[0]["t_s"] <= kill_s + timeout_s + 0.15, summary["events"]
     assert any(e["kind"] == "process_exit" and e["node"] == victim for e in summary["events"])
     assert any(v.startswith(f"process: {victim} died") for v in summary["violations"])
+    # the launcher prints the fault display: the speed server's watchdog fault, once
+    # (a dead speed server displays nothing: the vehicle's own timeout stopped it)
+    watchdog = [line for line in display if "fault 1001" in line]
+    assert len(watchdog) == (1 if victim == "driving" else 0), display
 
 
 @retry_when_stalled

@@ -25,6 +25,7 @@ from overdrive.messages import (
     SCHEMA_VERSION,
     AdvanceAuthorization,
     ClockEstimate,
+    Display,
     DriveMode,
     DrivingStatus,
     GpsIns,
@@ -61,7 +62,7 @@ TOPIC_TYPES: dict[str, type] = {
     Topic.POWERTRAIN: PowertrainCommand, Topic.SAFETY: SafetyDevices,
     Topic.VEHICLE_STATUS: VehicleStatus, Topic.WHEEL_SPEED: WheelSpeed, Topic.GPS_INS: GpsIns,
     Topic.IMU: Imu, Topic.RADAR: Radar, Topic.TRUTH: Truth, Topic.NOTICE: Notice,
-    Topic.TICK: NodeTick,
+    Topic.TICK: NodeTick, Topic.DISPLAY: Display,
 }
 """The one message type each stack topic carries (messages.py's topic comments)."""
 

@@ -102,6 +102,7 @@ PUBLISHERS: dict[str, frozenset[str]] = {
     Topic.DRIVING_STATUS: frozenset({"driving"}),
     Topic.SET_SPEED: SIM | {"driving"},
     Topic.SPEED_STATE: frozenset({"speed"}),
+    Topic.DISPLAY: frozenset({"speed"}),
     Topic.PEDALS: SIM | {"speed"},
     Topic.STEER: SIM | {"driving"},
     Topic.POWERTRAIN: SIM | {"speed"},

@@ -231,7 +231,8 @@ def launch(scenario: Path, out_dir: Path | None, listen: str, restart: bool, kil
         run = Launch(loaded, out, listen=listen, vehicle=vehicle, restart=restart, actions=actions,
                      base_file=zenoh_config, credentials=credentials, allow_remote=allow_remote,
                      plot=not no_plot, node_log=True, secure=not open_bus, rt_priority=rt_priority,
-                     clock_offsets=offsets)
+                     clock_offsets=offsets,
+                     display=None if quiet else (lambda line: click.echo(line, err=True)))
     except (ScenarioError, OutDirError, ValueError) as exc:
         _usage(str(exc))
         return

@@ -266,7 +266,8 @@ def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool
             fail_usage(f"{scenario}: {problem} (--profile plain)")
         out = make_out_dir(out_dir or default_out_dir(loaded))
         result = run_drive(loaded, remote, out, bind=local,
-                           profile="plain" if profile == "plain" else "xgv")
+                           profile="plain" if profile == "plain" else "xgv",
+                           display=lambda line: click.echo(line, err=True))
     except (ScenarioError, OutDirError) as exc:
         fail_usage(str(exc))
         return

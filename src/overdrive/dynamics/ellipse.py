@@ -18,6 +18,12 @@ Model, in vehicle coordinates (x forward along the direction of travel, y to the
   tyres supply the rest, the lateral demand ``f_y = v^2 k - g sin(roll)``. What is left for
   the longitudinal direction is ``A sqrt(1 - (f_y / B)^2)``.
 - Traction-control activity shrinks the ellipse for a while (``TractionMonitor``).
+- Rollover (seed 003): the lateral semi-axis is ``min(B, R)``, ``R = g * SSF * (1 - derate)``
+  with the static stability factor ``SSF = track / (2 h_cg)``: a rigid vehicle on level ground
+  lifts its inner wheels at ``g * SSF`` whatever the friction. ``R`` scales with the normal
+  load like ``B`` (on a side slope tipping compares the lateral force with ``g cos(roll)``) and
+  is not shrunk by friction or traction control. Using the ellipse's shape below ``R`` is
+  conservative: the longitudinal share left in a curve is planned as if the grip were ``R``.
 
 Signs: ``grade_rad`` is the slope of the direction of travel (pitch for forward driving,
 -pitch in reverse); ``roll_rad`` is right side down positive; curvature + right, as the
@@ -44,6 +50,11 @@ class EnvelopeConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw
     max_friction_scale: float = 1.0   # never plan beyond the published figures
     traction_shrink: float = 0.5      # semi-axes x this while traction control was active recently
     traction_hold_s: float = 5.0      # ... for this long after the last activity (estimate)
+    rollover_derate: float = 0.25     # seed 003's derate, on g * SSF too: the static factor
+                                      # ignores suspension roll and tyre deflection (the CG moves
+                                      # outward) and a transient's overshoot, which tip a vehicle
+                                      # below it (the 2004 Escape 4x4 tipped up in NHTSA's
+                                      # fishhook test: autos.ca, 10 Aug 2004)
 
 
 DEFAULT_ENVELOPE = EnvelopeConfig()
@@ -73,7 +84,14 @@ def ellipse_for(params: VehicleParams, friction: float,
     scale = min(max(friction, 0.0) / config.reference_friction, config.max_friction_scale)
     scale *= (1.0 - config.derate) * max(shrink, 0.0)
     return Ellipse(lon_mps2=params.max_decel_mps2 * scale,
-                   lat_mps2=params.skidpad_lat_g * G_MPS2 * scale)
+                   lat_mps2=min(params.skidpad_lat_g * G_MPS2 * scale,
+                                rollover_lat_mps2(params, config)))
+
+
+def rollover_lat_mps2(params: VehicleParams, config: EnvelopeConfig = DEFAULT_ENVELOPE) -> float:
+    """The rollover limit on the lateral specific force, level ground: ``g * SSF * (1 - derate)``
+    (``SSF = track / (2 h_cg)``); the ellipse's lateral semi-axis never exceeds it."""
+    return G_MPS2 * params.static_stability_factor * (1.0 - config.rollover_derate)
 
 
 def load_axes_mps2(e: Ellipse, grade_rad: float = 0.0, roll_rad: float = 0.0) -> tuple[float, float]:

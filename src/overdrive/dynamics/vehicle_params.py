@@ -75,6 +75,9 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     skidpad_lat_g: float = 0.8          # lateral g on the skid pad
     stopping_distance_60mph_m: float = 40.0  # 60-0 mph stopping distance (26.82 m/s)
     max_pitch_rad: float = 0.35         # steepest grade the vehicle is allowed to drive
+    # rollover (seed 003; docs/driving-module.md "Rollover"): static stability factor
+    track_width_m: float = 1.55         # between the tyres' centre lines (the narrower axle's)
+    cg_height_m: float = 0.66           # centre of gravity above the ground, loaded as driven
     # sensors
     radar_range_m: float = 100.0        # Eaton VORAD EVT-300: ~107 m (350 ft)
     radar_half_angle_rad: float = 0.105  # VORAD beam: 12 deg wide (6 deg either side)
@@ -110,6 +113,12 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     def max_curvature_1pm(self) -> float:
         """Tightest curvature the steering can reach (minimum turning radius)."""
         return math.tan(self.max_steer_rad) / self.wheelbase_m
+
+    @property
+    def static_stability_factor(self) -> float:
+        """SSF = track / (2 h_cg): the lateral acceleration, in g, at which a rigid vehicle on
+        level ground lifts its inner wheels (NHTSA's rollover measure)."""
+        return self.track_width_m / (2.0 * self.cg_height_m)
 
     @property
     def max_decel_mps2(self) -> float:
@@ -184,6 +193,9 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "stopping_distance_60mph_m": (25.0, 300.0,
                                   "60-0 mph: the best cars ~30 m, loaded trucks ~100 m"),
     "max_pitch_rad": (0.01, 0.8, "steepest grade driven: 0.8 rad (~100 %) is beyond most vehicles"),
+    "track_width_m": (0.3, 3.0, "a small robot base ~0.3 m; road vehicles are at most 2.6 m wide"),
+    "cg_height_m": (0.1, 4.0, "a go-kart ~0.25 m, cars ~0.5 m, a loaded truck ~2 m; 4 m is the "
+                              "tallest road vehicle"),
     "radar_range_m": (1.0, 500.0, "automotive long-range radars reach ~250 m"),
     "radar_half_angle_rad": (0.005, 1.6, "half the beam width: up to +-90 deg"),
     "gps_noise_m": (0.0, 50.0, "1 sigma: RTK ~0.02 m, standalone GPS ~5 m"),
@@ -339,6 +351,11 @@ def _check_consistent(params: VehicleParams, given: set[str]) -> None:
         raise VehicleSpecError(field, f"wheelbase_m {params.wheelbase_m:g} + rear_overhang_m "
                                       f"{params.rear_overhang_m:g} is longer than length_m "
                                       f"{params.length_m:g} (the axles must fit in the vehicle)")
+    if params.track_width_m > params.width_m:
+        field = "track_width_m" if "track_width_m" in given else "width_m"
+        raise VehicleSpecError(field, f"track_width_m {params.track_width_m:g} is wider than "
+                                      f"width_m {params.width_m:g} (the tyres are inside the "
+                                      f"vehicle)")
     if params.idle_rpm >= params.redline_rpm:
         field = "idle_rpm" if "idle_rpm" in given else "redline_rpm"
         raise VehicleSpecError(field, f"idle_rpm {params.idle_rpm:g} must be below redline_rpm "

@@ -47,6 +47,9 @@ Rules (docs/reliability.md, docs/safety-case.md):
    plant tolerance), outside emergency stops.
 10. **estop_precedence**: in e-stop disable the vehicle brakes >= 95 % within 0.5 s.
 11. **contact**: the vehicle never touches an obstacle.
+12. **rollover**: the lateral force the tyres supply never exceeds the vehicle's static rollover
+    limit, ``|a_lat - g sin(roll)| <= g * SSF * cos(roll) cos(pitch)`` (``SSF = track / (2
+    h_cg)``, no margin: the stack plans with a derated limit), from ground truth.
 
 While a human drives (manual override, emergency manual override, partial manual speed) rules
 1-3 are suspended and earlier authorizations are void: the stack does not hold the wheel.
@@ -69,7 +72,8 @@ from overdrive.observe.secondary_audit import SecondaryBrakingAudit
 from overdrive.vehicle.modes import safety_mode
 
 RULES = ("authorization", "direction", "speed", "unintended_motion", "watchdog", "finite",
-         "throttle_while_braking", "control", "acceleration_ellipse", "estop_precedence", "contact")
+         "throttle_while_braking", "control", "acceleration_ellipse", "estop_precedence", "contact",
+         "rollover")
 """The judge's rules, in the order of the module docstring."""
 
 
@@ -602,6 +606,7 @@ class Monitor:
             self._violate("contact", "contact", abs(truth.speed_mps), "m/s",
                           f"the vehicle touched an obstacle at {abs(truth.speed_mps):.2f} m/s")
         self._ellipse(truth)
+        self._rollover(truth)
 
     def _record_stop(self, speed_mps: float) -> None:
         if abs(speed_mps) > MOVING_MPS:
@@ -702,6 +707,16 @@ class Monitor:
             self._violate("acceleration_ellipse", "acceleration_ellipse", usage, "",
                           f"achieved acceleration ({ax:.2f}, {ay:.2f}) m/s^2 uses {usage:.0%} of the "
                           f"ellipse ({ax_max:.2f}, {ay_max:.2f})", worst=True)
+
+    def _rollover(self, truth: Any) -> None:
+        """Rule 12: the tyres' lateral force against the static stability factor's limit."""
+        lateral = truth.lat_accel_mps2 - G_MPS2 * math.sin(truth.roll_rad)
+        limit = (G_MPS2 * self.params.static_stability_factor * math.cos(truth.roll_rad)
+                 * math.cos(truth.pitch_rad))
+        if abs(lateral) > limit:
+            self._violate("rollover", "rollover", abs(lateral) / limit, "",
+                          f"lateral {lateral:.2f} m/s^2 beyond the rollover limit {limit:.2f} "
+                          f"m/s^2 (SSF {self.params.static_stability_factor:.2f})", worst=True)
 
     # ------------------------------------------------------------------ per tick
 

@@ -58,6 +58,7 @@ from overdrive.bus.access import (
 from overdrive.bus.wire import Registry
 from overdrive.bus.zenoh_bus import DEFAULT_ENDPOINT, DEFAULT_VEHICLE, ZenohBus, open_bus
 from overdrive.messages import NodeTick, Notice, Topic
+from overdrive.observe.display import DisplayLines
 from overdrive.observe.judge import DELIVERED_TOPICS
 from overdrive.observe.recorder import Recorder
 from overdrive.observe.run_files import open_trace, write_summary
@@ -368,8 +369,11 @@ class Launch:
                  allow_remote: bool = False, plot: bool = True,
                  node_log: bool = False, secure: bool = True, rt_priority: bool = True,
                  clock_offsets: Mapping[str, tuple[float, float]] | None = None,
-                 clock_sync_timeout_s: float = CLOCK_SYNC_TIMEOUT_S) -> None:
+                 clock_sync_timeout_s: float = CLOCK_SYNC_TIMEOUT_S,
+                 display: Callable[[str], Any] | None = None) -> None:
         self.scenario = scenario
+        self.display = DisplayLines(display) if display is not None else None
+        """One line per change of the fault display's text (``observe.display``)."""
         self.clock_offsets = {name: (float(o), float(d)) for name, (o, d)
                               in (clock_offsets or {}).items()}
         """Test hook: node (CLI name) -> ``(offset_s, drift_ppm)`` of its process's clock."""
@@ -836,6 +840,8 @@ class Launch:
             recorder = self.recorder = Recorder(trace_file, keep_rows=False)
             monitor = make_monitor(scenario, DEFAULT_PERIOD_S)
             self.bus.tap(recorder.observe)
+            if self.display is not None:
+                self.bus.tap(self.display.observe)
             epoch = self._epoch = time.monotonic() + START_LEAD_S
 
             def judge(topic: str, msg: Any, sent_s: float) -> None:
@@ -870,6 +876,8 @@ class Launch:
 
             def before(now_s: float) -> None:
                 faults.now_s = recorder.now_s = now_s
+                if self.display is not None:
+                    self.display.set_time(now_s)
                 self._act(now_s)       # fault injection at the player's resolution (10 ms)
                 if on_tick is not None:
                     on_tick(now_s)

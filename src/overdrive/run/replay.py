@@ -42,7 +42,7 @@ that is not one of the rebuilt servers (e.g. a fake planner) is played back."""
 VEHICLE_TOPICS = frozenset({Topic.VEHICLE_STATUS, Topic.WHEEL_SPEED, Topic.GPS_INS, Topic.IMU,
                             Topic.RADAR, Topic.TRUTH})
 SCENARIO_TOPICS = frozenset({Topic.SAFETY, Topic.MOVE_COMMAND, "sim/world", "sim/faults"})
-SERVER_TOPICS = {Topic.SPEED_STATE: "speed", Topic.DRIVING_STATUS: "driving",
+SERVER_TOPICS = {Topic.SPEED_STATE: "speed", Topic.DISPLAY: "speed", Topic.DRIVING_STATUS: "driving",
                  Topic.DRIVE_MODE: "move", Topic.MOVE_REPLY: "move", Topic.MOVE_STATUS: "move",
                  Topic.PLANNER_CLOCK: "move"}
 """Topics with a single publisher among the servers (the others carry a ``source``)."""

@@ -7,7 +7,10 @@ transition, and publishes:
 
 - ``speed/state``: one ``SpeedState`` reply per SPSS received, or one status when none came;
 - ``vehicle/pedals`` and ``vehicle/powertrain`` every period (``source="speed"``);
-- ``events``: a ``Notice`` per fault (``kind="fault"``) and per emergency stop (``kind="estop"``).
+- ``events``: a ``Notice`` per fault (``kind="fault"``) and per emergency stop (``kind="estop"``);
+- ``display``: the current fault's text for the LED sign (``Display``; "" when none), on every
+  change and every ``DISPLAY_REFRESH_S`` (seed 001: "Sending a nonzero fault code will result
+  in a message being displayed in the LED sign").
 
 Decisions the seed leaves open (documented in ``docs/speed-server.md``):
 
@@ -68,6 +71,8 @@ from overdrive.dynamics.speed_control import (
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, Gear, GearTable, VehicleParams
 from overdrive.messages import (
+    DISPLAY_REFRESH_S,
+    Display,
     GpsIns,
     Imu,
     Notice,
@@ -217,6 +222,8 @@ class SpeedServer:
         self.fault_since_s = -math.inf
         self.last_rejection: tuple[int, str] | None = None
         self.last_input_rejection = ""
+        self.display: Display | None = None   # the last Display sent, and when
+        self.display_sent_s = -math.inf
         # hints
         self.hints = HintMonitor(params, cfg.hints, cfg.gear_cap_fraction)
         self.hint = "none"
@@ -290,7 +297,16 @@ class SpeedServer:
             if not code:
                 code, message = self.fault, self.fault_message
             out.append((Topic.SPEED_STATE, self._speed_state(code, message)))
+        self._display(now_s, out)
         return out
+
+    def _display(self, now_s: float, out: list) -> None:
+        """The LED sign's text: the current fault (the one the replies carry), "" when none;
+        sent when it changes and re-sent every ``DISPLAY_REFRESH_S``."""
+        shown = Display(text=self.fault_message, code=self.fault) if self.fault else Display(text="")
+        if shown != self.display or now_s - self.display_sent_s >= DISPLAY_REFRESH_S - TIME_EPS_S:
+            self.display, self.display_sent_s = shown, now_s
+            out.append((Topic.DISPLAY, shown))
 
     # ------------------------------------------------------------------ inputs
 
