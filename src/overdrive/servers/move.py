@@ -62,6 +62,7 @@ from overdrive.dynamics.ellipse import (
     lateral_speed_limit_mps,
     max_safe_speed_mps,
 )
+from overdrive.dynamics.grip_estimate import GripConfig, GripEstimator
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
@@ -83,6 +84,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    tyres_at_limit,
 )
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
@@ -165,7 +167,10 @@ def mermaid_diagram() -> str:
 class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
     """Tuning of the move server; every default says where it comes from."""
 
-    friction: float = 0.8              # assumed tyre-road friction (scenario default; no sensor)
+    friction: float = 0.8              # assumed tyre-road friction at start (scenario default);
+                                       # re-estimated online (dynamics.grip_estimate, issue 31)
+    friction_max: float | None = None  # the estimate never loosens above this (None: friction)
+    grip: GripConfig = GripConfig()
     envelope: EnvelopeConfig = DEFAULT_ENVELOPE
     reaction_s: float = 0.7            # the driving module's latency allowance (same figure)
     plan_decel_fraction: float = 0.6   # the driving module's braking plan's share (same figure)
@@ -219,7 +224,8 @@ class MoveServer:
             raise ValueError(f"friction: must be a positive finite number, got {cfg.friction}")
         if not (math.isfinite(cfg.stall_s) and cfg.stall_s > 0.0):
             raise ValueError(f"stall_s: must be a positive finite number, got {cfg.stall_s}")
-        self.ellipse = ellipse_for(params, cfg.friction, cfg.envelope)
+        self.grip = GripEstimator(params, cfg.friction, cfg.friction_max, cfg.grip)
+        self.ellipse = ellipse_for(params, self.grip.estimate, cfg.envelope)
         self.gears = GearTable(params)
         self.model = ActuatorModel(params, cfg.adaptive)
         self.monitor = ConditionMonitor(params, cfg.conditions)
@@ -539,11 +545,24 @@ class MoveServer:
                 direction = self._vehicle_direction()
                 self.model.update_pedals(dt_s, direction, status.gear, self.speed_mps,
                                          imu.accel_x_mps2, gps.pitch_rad, status.throttle_pct,
-                                         status.brake_pct, status.traction_control,
+                                         status.brake_pct, tyres_at_limit(status),
                                          status.engine == "running")
+                self._learn_grip(dt_s, direction, status, gps, imu)
             self.model.update_steering(dt_s, self.steer_cmd_pct, status.steer_pct)
         if imu is not None:
             self.monitor.update_imu(dt_s, imu.accel_z_mps2)
+
+    def _learn_grip(self, dt_s: float, direction: int, status: VehicleStatus, gps: GpsIns,
+                    imu: Imu) -> None:
+        """Friction online (issue 31, dynamics.grip_estimate); the ellipse follows it."""
+        before = self.grip.estimate
+        after = self.grip.update(self.last_now_s or 0.0, dt_s, speed_mps=self.speed_mps,
+                                 accel_x_mps2=imu.accel_x_mps2, accel_y_mps2=imu.accel_y_mps2,
+                                 pitch_rad=gps.pitch_rad, direction=direction,
+                                 slipping=tyres_at_limit(status))
+        if after != before:
+            self.ellipse = ellipse_for(self.params, after, self.config.envelope)
+            self._lateral_key = None   # the curve's speed limit was for the old ellipse
 
     # ------------------------------------------------------------------ commands
 
@@ -827,10 +846,10 @@ class MoveServer:
         v = abs(self.speed_mps)
         if v < self.config.standstill_mps or direction_of(cmd.kind) != self.direction:
             return ""
-        p, cfg = self.params, self.config
+        p = self.params
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         grade = -pitch if cmd.kind == "reverse" else pitch
-        decel = max(min(p.max_brake_decel_mps2, cfg.friction * G_MPS2 * math.cos(grade))
+        decel = max(min(p.max_brake_decel_mps2, self.grip.estimate * G_MPS2 * math.cos(grade))
                     + G_MPS2 * math.sin(grade), SHORTEST_DECEL_MPS2)
         shortest_m = v * (self.period_s + p.brake_lag_s) + v * v / (2.0 * decel)
         left_m = cmd.distance_m - (self.progress_m(direction_of(cmd.kind)) - odometer0_m)
@@ -1042,6 +1061,7 @@ class MoveServer:
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
             speed_mps=self.speed_mps, wheel_speed_mps=self.wheel_mps,
             traction_control=bool(status is not None and status.traction_control),
+            abs_active=bool(status is not None and status.abs_active is True),
             hint=ss.hint if ss is not None else "none",
             goal_speed_mps=driving.goal_speed_mps if driving is not None else 0.0,
             throttle_pct=status.throttle_pct if status is not None else 0.0,

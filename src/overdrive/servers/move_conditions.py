@@ -96,7 +96,8 @@ class ConditionMonitor:
                wheel_speed_mps: float | None, traction_control: bool, hint: str,
                goal_speed_mps: float, throttle_pct: float, safety_mode: str,
                speed_server_estop: bool, gps_age_s: float, lateral_cap_mps: float,
-               degraded: list[str], actuator_cap_mps: float, actuator_reason: str) -> None:
+               degraded: list[str], actuator_cap_mps: float, actuator_reason: str,
+               abs_active: bool = False) -> None:
         cfg, p = self.config, self.params
         found: dict[str, Reduction] = {}
         v = abs(speed_mps)
@@ -120,7 +121,9 @@ class ConditionMonitor:
                                        f"too steep: pitch {math.degrees(pitch):.1f} deg")
 
         reason = ""
-        if wheel_speed_mps is not None and v > cfg.slip_min_mps and gps_age_s <= cfg.slip_gps_fresh_s:
+        # ABS (issue 31) reads the wheels slow while braking at the limit: not slippery ground
+        if (wheel_speed_mps is not None and v > cfg.slip_min_mps and not abs_active
+                and gps_age_s <= cfg.slip_gps_fresh_s):
             diff = abs(wheel_speed_mps - speed_mps)
             if diff > max(cfg.slip_min_mps, cfg.slip_fraction * v):
                 reason = f"wheel speed {wheel_speed_mps:.2f} vs ground {speed_mps:.2f} m/s"
