@@ -14,9 +14,14 @@ Below the limit a sample only says "at least this much". Hence the rule:
   driven share of the weight: its sample reads low, the safe side.
 - **Loosening, slowly, with evidence**: ``quiet_s`` after the last episode, each second in
   which the tyres work at ``evidence_fraction`` or more of the estimate (braking, accelerating,
-  turning) without slipping raises it by ``rise_per_s``, never above ``maximum`` (the configured
-  maximum; the owners default it to the friction the stack was configured with, so a run that
-  configures nothing only ever tightens and recovers).
+  turning) without slipping raises it by ``rise_per_s``, never above ``headroom`` times the
+  most grip used without slip since the last episode (the grip *demonstrated*), nor above
+  ``maximum`` (the configured maximum; the owners default it to the friction the stack was
+  configured with, so a run that configures nothing only ever tightens and recovers). The
+  headroom of 2 keeps the driving module's braking plan (25 % derate x 0.6 of the ellipse: 0.45
+  of the estimate) at 0.9 of the grip demonstrated; a curve's cap (0.675 of the estimate) can
+  exceed the truth once the estimate passes 1.48 times it: that slide is the measurement
+  (grip is only measurable near its limit), caught by the curve's grip-lost stop (issue 30).
 
 Never from the simulator's truth: only ``VehicleStatus`` (its ABS and traction-control flags),
 the IMU and the trusted speed. Pure, time passed in. Docs: docs/driving-module.md,
@@ -43,6 +48,7 @@ class GripConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_onl
     quiet_s: float = 2.0            # no episode for this long before loosening starts (the
                                     # traction monitor's hold is 5 s; ABS cycles at ~10 Hz)
     evidence_fraction: float = 0.3  # tyres at work: grip used >= this share of the estimate
+    headroom: float = 2.0           # never above this x the grip demonstrated (see module doc)
     min_speed_mps: float = 0.3      # below: the last instants of a stop, a start from rest
 
 
@@ -56,8 +62,8 @@ def grip_used(params: VehicleParams, lon_mps2: float, lat_mps2: float, pitch_rad
 class GripEstimator:
     """The friction the stack plans with (see the module doc)."""
 
-    __slots__ = ("_before", "_count", "_sum", "config", "episodes", "estimate", "evidence_s",
-                 "last_episode_s", "maximum", "params")
+    __slots__ = ("_before", "_count", "_sum", "config", "demonstrated", "episodes", "estimate",
+                 "evidence_s", "last_episode_s", "maximum", "params")
 
     def __init__(self, params: VehicleParams, initial: float, maximum: float | None = None,
                  config: GripConfig | None = None) -> None:
@@ -70,6 +76,7 @@ class GripEstimator:
         self.estimate = min(initial, top)
         self.last_episode_s = -math.inf
         self.evidence_s = 0.0      # evidence time since the last episode
+        self.demonstrated = 0.0    # most grip used without slip since the last episode
         self.episodes = 0
         self._before: float | None = None   # the estimate when the episode began (None: none)
         self._sum = 0.0
@@ -98,13 +105,16 @@ class GripEstimator:
             self.estimate = max(cfg.floor, min(self._before, self._sum / self._count))
             self.last_episode_s = now_s
             self.evidence_s = 0.0
+            self.demonstrated = 0.0
             return self.estimate
         self._before = None
+        self.demonstrated = max(self.demonstrated, used)
         if (now_s - self.last_episode_s >= cfg.quiet_s
                 and used >= cfg.evidence_fraction * self.estimate
                 and self.estimate < self.maximum):
             self.evidence_s += dt_s
-            self.estimate = min(self.maximum, self.estimate + cfg.rise_per_s * dt_s)
+            cap = min(self.maximum, cfg.headroom * self.demonstrated)
+            self.estimate = max(self.estimate, min(cap, self.estimate + cfg.rise_per_s * dt_s))
         return self.estimate
 
 
