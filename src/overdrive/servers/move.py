@@ -63,6 +63,7 @@ from overdrive.dynamics.ellipse import (
     max_safe_speed_mps,
 )
 from overdrive.dynamics.grip_estimate import GripConfig, GripEstimator
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
@@ -186,6 +187,9 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     turn_in_m: float = 3.0             # slow steering: travel at most this while it catches up
     turn_in_min_mps: float = 1.0       # ... but never demand less than this for it
     estimates_period_s: float = 0.1
+    throttle_reserve_mps2: float = 0.05  # a weak throttle's reachable speed keeps this much
+                                        # acceleration in hand (the speed loop's margin to
+                                        # hold a speed; the condition monitor's lag test)
     adaptive: AdaptiveConfig = AdaptiveConfig()
     conditions: ConditionConfig = ConditionConfig()
     radar: RadarConfig = RadarConfig()   # corridor, radar health, reverse limits (move_radar)
@@ -202,6 +206,9 @@ class ActiveCommand(msgspec.Struct, frozen=True):
     direction: str
     odometer0_m: float
 
+
+THROTTLE_REACH_STEPS = 24
+"""Bisection steps for a weak throttle's reachable speed: 2^-24 of the max speed (< 1 um/s)."""
 
 MAX_SESSIONS_KEPT = 64
 """Planner sessions remembered as earlier ones (a planner restarting every second for a minute)."""
@@ -1101,9 +1108,44 @@ class MoveServer:
                 v = max(cfg.turn_in_min_mps, cfg.turn_in_m / catch_up_s)
                 cap = min(cap, v)
             reasons.append(f"steering rate at {e_s:.0%}")
-        if model.throttle.value < cfg.adaptive.degraded_throttle:
-            reasons.append(f"throttle at {model.throttle.value:.0%}")
+        e_t = model.throttle.value
+        if e_t < cfg.adaptive.degraded_throttle:
+            # issue 31: the weak throttle's envelope, as the brake's and the steering's: no
+            # speed above what it can still reach on this grade in the gear engaged
+            reach = self._throttle_reach_mps(e_t, grade, maxspeed)
+            if reach is not None:
+                cap = min(cap, reach)
+                reasons.append(f"throttle at {e_t:.0%}: reaches {reach:.1f} m/s")
+            else:
+                reasons.append(f"throttle at {e_t:.0%}")
         return cap, ("actuator response degraded: " + "; ".join(reasons)) if reasons else ""
+
+    def _throttle_reach_mps(self, effectiveness: float, grade: float,
+                            maxspeed: float) -> float | None:
+        """Highest speed up to ``maxspeed`` at which ``effectiveness`` x full throttle in the
+        gear engaged still leaves ``throttle_reserve_mps2`` over rolling, drag and grade
+        (bisection; the authority falls with speed). None: no gear of this direction engaged,
+        or it cannot even start (the direction hold's business, not a speed cap)."""
+        ss, p, cfg = self.speed_state, self.params, self.config
+        gear = self.gears.get(ss.gear) if ss is not None else None
+        want = -1 if self.direction == "reverse" else 1
+        if gear is None or gear.direction != want:
+            return None
+        sin_g = math.sin(grade)
+
+        def spare(v: float) -> float:
+            return (effectiveness * drive_authority_mps2(p, gear, v)
+                    - resistance_mps2(p, v, sin_g) - cfg.throttle_reserve_mps2)
+
+        if spare(0.0) <= 0.0:
+            return None
+        lo, hi = 0.0, maxspeed
+        if spare(hi) > 0.0:
+            return hi
+        for _ in range(THROTTLE_REACH_STEPS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if spare(mid) > 0.0 else (lo, mid)
+        return lo
 
     # ------------------------------------------------------------------ outputs
 
