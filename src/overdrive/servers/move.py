@@ -93,7 +93,7 @@ from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.dispatch import TypeDispatch
 from overdrive.servers.move_arrivals import sample_times
 from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, PlannerMachine
-from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
+from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor, InputGaps
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
 from overdrive.servers.speed_table import ESTOP_CAUSES, FaultCode, estop_cause
@@ -207,6 +207,9 @@ class ActiveCommand(msgspec.Struct, frozen=True):
     odometer0_m: float
 
 
+LAG_TOPICS = (Topic.GPS_INS, Topic.SPEED_STATE)
+"""The state whose late arrival or loss lowers the speed (issue 31; move_conditions ``lag``)."""
+
 THROTTLE_REACH_STEPS = 24
 """Bisection steps for a weak throttle's reachable speed: 2^-24 of the max speed (< 1 um/s)."""
 
@@ -236,6 +239,7 @@ class MoveServer:
         self.gears = GearTable(params)
         self.model = ActuatorModel(params, cfg.adaptive)
         self.monitor = ConditionMonitor(params, cfg.conditions)
+        self.gaps = InputGaps(LAG_TOPICS, cfg.conditions.lag_window_s)   # issue 31: late inputs
         self.corridor = RadarCorridor(params, cfg.radar)
         self.phase = "idle"
         self.active: ActiveCommand | None = None
@@ -487,6 +491,7 @@ class MoveServer:
             dispatch(at_s, msg, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
+        self.gaps.arrived(now_s, {topic for topic, _ in inbox})
         cfg = self.config
         # this server did not run for longer than the driving module waits for its stream: a
         # stall (the vehicle was stopped meanwhile, a STOP waited unread); judged in _classify
@@ -1063,6 +1068,7 @@ class MoveServer:
             self._lateral_mps = lateral_speed_limit_mps(self.ellipse, k, grade, roll)
         v_lat = self._lateral_mps
         actuator_cap, why = self._actuator_cap(maxspeed, k, grade, roll)
+        gap_s, gap_topic = self.gaps.worst(now_s)
         self.monitor.update(
             now_s, maxspeed_mps=maxspeed,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
@@ -1076,7 +1082,8 @@ class MoveServer:
             speed_server_estop=bool(ss is not None and ss.estop and not self.latched),
             gps_age_s=now_s - self.gps_s if self.gps is not None else 0.0,
             lateral_cap_mps=v_lat, degraded=self.model.degraded(),
-            actuator_cap_mps=actuator_cap, actuator_reason=why)
+            actuator_cap_mps=actuator_cap, actuator_reason=why,
+            input_gap_s=gap_s, input_gap_topic=gap_topic)
         if active is not None and self.phase not in ("stopping", "estopped"):
             for r in self.monitor.started:
                 out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
