@@ -329,6 +329,7 @@ class VehicleStatus(Message, frozen=True):
     engine_rpm: float
     start_failed: bool             # last crank attempt failed
     traction_control: bool         # tyre slip detected by the vehicle's traction control
+                                   # (wheel spin or a slide; ABS too when abs_active is None)
     steer_pct: float               # actual steering position, % of full lock
     throttle_pct: float            # actual (lagged) actuator positions
     brake_pct: float
@@ -337,6 +338,14 @@ class VehicleStatus(Message, frozen=True):
     computer_steering: bool = True
     command_timeout: bool = False  # the vehicle's own pedal-command timeout brake is holding
                                    # (released only by the stack's restart: a runwait)
+    abs_active: bool | None = None  # the brakes' ABS acts (issue 31): braking at the grip
+                                   # limit, not slippery ground. None: the vehicle does not report
+                                   # it apart; its traction_control is then taken as slip
+
+
+def tyres_at_limit(status: VehicleStatus) -> bool:
+    """ABS or traction control acts: the tyres, not the actuators, set the acceleration."""
+    return status.traction_control or status.abs_active is True
 
 
 class WheelSpeed(Message, frozen=True):

@@ -75,7 +75,7 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
     # over JAUS the configurations differ from the defaults; elsewhere each server takes its own
     # default (None), so a test that swaps a server's default configuration reaches it
     if kinds & MOVE_KINDS:
-        move = MoveServerConfig(friction=spec.world.friction,
+        move = MoveServerConfig(friction=spec.world.friction, friction_max=spec.friction_max,
                                 planner_machine=spec.planner_machine)
         if over_jaus:
             move = msgspec.structs.replace(
@@ -83,7 +83,8 @@ def build_servers(scenario: Scenario, *, over_jaus: bool) -> list[Node]:
         nodes.append(MoveServer(params, config=move))
     if kinds & (DRIVING_KINDS | MOVE_KINDS):
         driving = DrivingConfig(monitor_actuators=False) if over_jaus else None
-        nodes.append(DrivingModule(params, config=driving, friction=spec.world.friction))
+        nodes.append(DrivingModule(params, config=driving, friction=spec.world.friction,
+                                   friction_max=spec.friction_max))
     if kinds & (SPEED_KINDS | DRIVING_KINDS | MOVE_KINDS):
         speed = SpeedServerConfig(monitor_actuators=False) if over_jaus else None
         nodes.append(SpeedServer(params, initial_state="run" if ready else "parked",

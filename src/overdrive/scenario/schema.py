@@ -369,6 +369,8 @@ class ScenarioFile(Spec, frozen=True):
     control: Literal["wrench", "motion-profile"] = "wrench"
     start: Literal["parked", "ready"] = "parked"
     planner_machine: Literal["same", "separate"] = "same"   # the planner's clock (move_clock)
+    friction_max: Friction | None = None   # the stack's friction estimate never loosens above
+                                           # this (issue 31); None: world.friction at start
     seed: Annotated[int, msgspec.Meta(ge=0, le=2**63 - 1)] = 1
     duration_s: Duration = 60.0
     world: WorldSpec = WorldSpec()

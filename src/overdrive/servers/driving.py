@@ -45,6 +45,7 @@ from overdrive.dynamics.ellipse import (
     load_axes_mps2,
     tyre_longitudinal_mps2,
 )
+from overdrive.dynamics.grip_estimate import GripConfig, GripEstimator
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
@@ -63,6 +64,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    tyres_at_limit,
 )
 from overdrive.safety.actuators import SteeringMonitor
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
@@ -121,6 +123,8 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
     steep_pitch_fraction: float = 0.5  # |pitch| >= this x max_pitch: steep, want low gear
     steep_exit_ratio: float = 0.7      # ... not steep again below 0.7 x that
     slippery_hold_s: float = 30.0      # traction control seen within this: slippery, want low gear
+                                       # (ABS reported apart is not: issue 31, docs)
+    grip: GripConfig = GripConfig()    # friction re-estimated online (dynamics.grip_estimate)
     gear_dwell_s: float = 1.0          # a wish for another gear must last this long
     gear_speed_fraction: float = 0.9   # goal <= this x gear top speed (redline fade, seed 001 limits)
     lapse_decel_mps2: float = 2.5      # a lapsed limit source stops the vehicle this gently (when
@@ -493,7 +497,7 @@ class DrivingModule:
                      Topic.WHEEL_SPEED)
 
     def __init__(self, params: VehicleParams, *, config: DrivingConfig | None = None,
-                 friction: float = 0.8) -> None:
+                 friction: float = 0.8, friction_max: float | None = None) -> None:
         if not (math.isfinite(friction) and friction > 0.0):
             raise ValueError(f"friction: must be a positive finite number, got {friction}")
         self.params = params
@@ -503,7 +507,11 @@ class DrivingModule:
                              f"{cfg.command_silence_s}")
         if not all(_valid_source(s) for s in cfg.streaming_sources):
             raise ValueError(f"streaming_sources: non-empty names, got {cfg.streaming_sources!r}")
-        self.friction = friction    # assumed: the module has no friction sensor (see docs)
+        # assumed at start, then re-estimated from ABS / traction control and the IMU (issue 31;
+        # no friction sensor): never above friction_max (default: the friction assumed)
+        self.grip = GripEstimator(params, friction, friction_max, cfg.grip)
+        self.friction = self.grip.estimate
+        self.imu: Imu | None = None
         self.traction = TractionMonitor(cfg.envelope)
         self.limits = SpeedLimits(cfg.max_speed_ttl_s)
         self.authorizations = Authorizations()
@@ -877,6 +885,8 @@ class DrivingModule:
             return
         if finite(msg.yaw_rate_rps):
             self.yaw_rate_rps = msg.yaw_rate_rps
+        if finite(msg.accel_x_mps2, msg.accel_y_mps2):
+            self.imu = msg
         if finite(msg.accel_x_mps2):
             self.motion.imu(now_s, msg)
 
@@ -906,7 +916,20 @@ class DrivingModule:
             if finite(msg.steer_pct):
                 self.steer_status = msg
             if msg.traction_control is True:
+                # a spin or a slide (ABS too, on a vehicle that does not report it apart);
+                # ABS reported apart is braking at the limit, not slippery ground (issue 31):
+                # it only feeds the friction estimate (_learn_grip)
                 self._slip(now_s)
+
+    def _learn_grip(self, now_s: float, dt_s: float, v_mps: float, pitch_rad: float) -> None:
+        """Friction online (issue 31, ``dynamics.grip_estimate``) from a trusted IMU."""
+        status, imu = self.vehicle_status, self.imu
+        if status is None or imu is None or not self.motion.trusted("imu") or status.shifting:
+            return
+        self.friction = self.grip.update(
+            now_s, dt_s, speed_mps=v_mps, accel_x_mps2=imu.accel_x_mps2,
+            accel_y_mps2=imu.accel_y_mps2, pitch_rad=pitch_rad,
+            direction=self.gears.direction(status.gear), slipping=tyres_at_limit(status))
 
     def _slip(self, now_s: float) -> None:
         self.traction.update(now_s, True)
@@ -950,6 +973,8 @@ class DrivingModule:
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         roll = self.gps.roll_rad if self.gps is not None else 0.0
         grade = -pitch if reverse else pitch
+        if fresh and trusted_mps is not None:
+            self._learn_grip(now_s, min(dt_s, MAX_CONTROL_STEP_S), trusted_mps, pitch)
         ell, cap_ell, plan_ell = self._period_ellipses(self.traction.shrink(now_s))
         lon_axis, lat_axis = load_axes_mps2(ell, grade, roll)
         g_along = G_MPS2 * math.sin(grade)

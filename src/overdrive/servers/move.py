@@ -62,6 +62,8 @@ from overdrive.dynamics.ellipse import (
     lateral_speed_limit_mps,
     max_safe_speed_mps,
 )
+from overdrive.dynamics.grip_estimate import GripConfig, GripEstimator
+from overdrive.dynamics.speed_control import drive_authority_mps2, resistance_mps2
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
@@ -83,6 +85,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    tyres_at_limit,
 )
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
 from overdrive.servers.adaptive import ESTIMATES_TOPIC, ActuatorModel, AdaptiveConfig
@@ -90,7 +93,7 @@ from overdrive.servers.anchoring import OdometerHistory
 from overdrive.servers.dispatch import TypeDispatch
 from overdrive.servers.move_arrivals import sample_times
 from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, PlannerMachine
-from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor
+from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor, InputGaps
 from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
 from overdrive.servers.speed_table import ESTOP_CAUSES, FaultCode, estop_cause
@@ -165,7 +168,10 @@ def mermaid_diagram() -> str:
 class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True):
     """Tuning of the move server; every default says where it comes from."""
 
-    friction: float = 0.8              # assumed tyre-road friction (scenario default; no sensor)
+    friction: float = 0.8              # assumed tyre-road friction at start (scenario default);
+                                       # re-estimated online (dynamics.grip_estimate, issue 31)
+    friction_max: float | None = None  # the estimate never loosens above this (None: friction)
+    grip: GripConfig = GripConfig()
     envelope: EnvelopeConfig = DEFAULT_ENVELOPE
     reaction_s: float = 0.7            # the driving module's latency allowance (same figure)
     plan_decel_fraction: float = 0.6   # the driving module's braking plan's share (same figure)
@@ -181,6 +187,9 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     turn_in_m: float = 3.0             # slow steering: travel at most this while it catches up
     turn_in_min_mps: float = 1.0       # ... but never demand less than this for it
     estimates_period_s: float = 0.1
+    throttle_reserve_mps2: float = 0.05  # a weak throttle's reachable speed keeps this much
+                                        # acceleration in hand (the speed loop's margin to
+                                        # hold a speed; the condition monitor's lag test)
     adaptive: AdaptiveConfig = AdaptiveConfig()
     conditions: ConditionConfig = ConditionConfig()
     radar: RadarConfig = RadarConfig()   # corridor, radar health, reverse limits (move_radar)
@@ -197,6 +206,12 @@ class ActiveCommand(msgspec.Struct, frozen=True):
     direction: str
     odometer0_m: float
 
+
+LAG_TOPICS = (Topic.GPS_INS, Topic.SPEED_STATE)
+"""The state whose late arrival or loss lowers the speed (issue 31; move_conditions ``lag``)."""
+
+THROTTLE_REACH_STEPS = 24
+"""Bisection steps for a weak throttle's reachable speed: 2^-24 of the max speed (< 1 um/s)."""
 
 MAX_SESSIONS_KEPT = 64
 """Planner sessions remembered as earlier ones (a planner restarting every second for a minute)."""
@@ -219,10 +234,12 @@ class MoveServer:
             raise ValueError(f"friction: must be a positive finite number, got {cfg.friction}")
         if not (math.isfinite(cfg.stall_s) and cfg.stall_s > 0.0):
             raise ValueError(f"stall_s: must be a positive finite number, got {cfg.stall_s}")
-        self.ellipse = ellipse_for(params, cfg.friction, cfg.envelope)
+        self.grip = GripEstimator(params, cfg.friction, cfg.friction_max, cfg.grip)
+        self.ellipse = ellipse_for(params, self.grip.estimate, cfg.envelope)
         self.gears = GearTable(params)
         self.model = ActuatorModel(params, cfg.adaptive)
         self.monitor = ConditionMonitor(params, cfg.conditions)
+        self.gaps = InputGaps(LAG_TOPICS, cfg.conditions.lag_window_s)   # issue 31: late inputs
         self.corridor = RadarCorridor(params, cfg.radar)
         self.phase = "idle"
         self.active: ActiveCommand | None = None
@@ -474,6 +491,7 @@ class MoveServer:
             dispatch(at_s, msg, out)
         dt_s = 0.0 if self.last_now_s is None else max(0.0, now_s - self.last_now_s)
         self.last_now_s = now_s
+        self.gaps.arrived(now_s, {topic for topic, _ in inbox})
         cfg = self.config
         # this server did not run for longer than the driving module waits for its stream: a
         # stall (the vehicle was stopped meanwhile, a STOP waited unread); judged in _classify
@@ -539,11 +557,24 @@ class MoveServer:
                 direction = self._vehicle_direction()
                 self.model.update_pedals(dt_s, direction, status.gear, self.speed_mps,
                                          imu.accel_x_mps2, gps.pitch_rad, status.throttle_pct,
-                                         status.brake_pct, status.traction_control,
+                                         status.brake_pct, tyres_at_limit(status),
                                          status.engine == "running")
+                self._learn_grip(dt_s, direction, status, gps, imu)
             self.model.update_steering(dt_s, self.steer_cmd_pct, status.steer_pct)
         if imu is not None:
             self.monitor.update_imu(dt_s, imu.accel_z_mps2)
+
+    def _learn_grip(self, dt_s: float, direction: int, status: VehicleStatus, gps: GpsIns,
+                    imu: Imu) -> None:
+        """Friction online (issue 31, dynamics.grip_estimate); the ellipse follows it."""
+        before = self.grip.estimate
+        after = self.grip.update(self.last_now_s or 0.0, dt_s, speed_mps=self.speed_mps,
+                                 accel_x_mps2=imu.accel_x_mps2, accel_y_mps2=imu.accel_y_mps2,
+                                 pitch_rad=gps.pitch_rad, direction=direction,
+                                 slipping=tyres_at_limit(status))
+        if after != before:
+            self.ellipse = ellipse_for(self.params, after, self.config.envelope)
+            self._lateral_key = None   # the curve's speed limit was for the old ellipse
 
     # ------------------------------------------------------------------ commands
 
@@ -827,10 +858,10 @@ class MoveServer:
         v = abs(self.speed_mps)
         if v < self.config.standstill_mps or direction_of(cmd.kind) != self.direction:
             return ""
-        p, cfg = self.params, self.config
+        p = self.params
         pitch = self.gps.pitch_rad if self.gps is not None else 0.0
         grade = -pitch if cmd.kind == "reverse" else pitch
-        decel = max(min(p.max_brake_decel_mps2, cfg.friction * G_MPS2 * math.cos(grade))
+        decel = max(min(p.max_brake_decel_mps2, self.grip.estimate * G_MPS2 * math.cos(grade))
                     + G_MPS2 * math.sin(grade), SHORTEST_DECEL_MPS2)
         shortest_m = v * (self.period_s + p.brake_lag_s) + v * v / (2.0 * decel)
         left_m = cmd.distance_m - (self.progress_m(direction_of(cmd.kind)) - odometer0_m)
@@ -1037,11 +1068,13 @@ class MoveServer:
             self._lateral_mps = lateral_speed_limit_mps(self.ellipse, k, grade, roll)
         v_lat = self._lateral_mps
         actuator_cap, why = self._actuator_cap(maxspeed, k, grade, roll)
+        gap_s, gap_topic = self.gaps.worst(now_s)
         self.monitor.update(
             now_s, maxspeed_mps=maxspeed,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
             speed_mps=self.speed_mps, wheel_speed_mps=self.wheel_mps,
             traction_control=bool(status is not None and status.traction_control),
+            abs_active=bool(status is not None and status.abs_active is True),
             hint=ss.hint if ss is not None else "none",
             goal_speed_mps=driving.goal_speed_mps if driving is not None else 0.0,
             throttle_pct=status.throttle_pct if status is not None else 0.0,
@@ -1049,7 +1082,8 @@ class MoveServer:
             speed_server_estop=bool(ss is not None and ss.estop and not self.latched),
             gps_age_s=now_s - self.gps_s if self.gps is not None else 0.0,
             lateral_cap_mps=v_lat, degraded=self.model.degraded(),
-            actuator_cap_mps=actuator_cap, actuator_reason=why)
+            actuator_cap_mps=actuator_cap, actuator_reason=why,
+            input_gap_s=gap_s, input_gap_topic=gap_topic)
         if active is not None and self.phase not in ("stopping", "estopped"):
             for r in self.monitor.started:
                 out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
@@ -1081,9 +1115,44 @@ class MoveServer:
                 v = max(cfg.turn_in_min_mps, cfg.turn_in_m / catch_up_s)
                 cap = min(cap, v)
             reasons.append(f"steering rate at {e_s:.0%}")
-        if model.throttle.value < cfg.adaptive.degraded_throttle:
-            reasons.append(f"throttle at {model.throttle.value:.0%}")
+        e_t = model.throttle.value
+        if e_t < cfg.adaptive.degraded_throttle:
+            # issue 31: the weak throttle's envelope, as the brake's and the steering's: no
+            # speed above what it can still reach on this grade in the gear engaged
+            reach = self._throttle_reach_mps(e_t, grade, maxspeed)
+            if reach is not None:
+                cap = min(cap, reach)
+                reasons.append(f"throttle at {e_t:.0%}: reaches {reach:.1f} m/s")
+            else:
+                reasons.append(f"throttle at {e_t:.0%}")
         return cap, ("actuator response degraded: " + "; ".join(reasons)) if reasons else ""
+
+    def _throttle_reach_mps(self, effectiveness: float, grade: float,
+                            maxspeed: float) -> float | None:
+        """Highest speed up to ``maxspeed`` at which ``effectiveness`` x full throttle in the
+        gear engaged still leaves ``throttle_reserve_mps2`` over rolling, drag and grade
+        (bisection; the authority falls with speed). None: no gear of this direction engaged,
+        or it cannot even start (the direction hold's business, not a speed cap)."""
+        ss, p, cfg = self.speed_state, self.params, self.config
+        gear = self.gears.get(ss.gear) if ss is not None else None
+        want = -1 if self.direction == "reverse" else 1
+        if gear is None or gear.direction != want:
+            return None
+        sin_g = math.sin(grade)
+
+        def spare(v: float) -> float:
+            return (effectiveness * drive_authority_mps2(p, gear, v)
+                    - resistance_mps2(p, v, sin_g) - cfg.throttle_reserve_mps2)
+
+        if spare(0.0) <= 0.0:
+            return None
+        lo, hi = 0.0, maxspeed
+        if spare(hi) > 0.0:
+            return hi
+        for _ in range(THROTTLE_REACH_STEPS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if spare(mid) > 0.0 else (lo, mid)
+        return lo
 
     # ------------------------------------------------------------------ outputs
 

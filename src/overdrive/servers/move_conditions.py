@@ -16,6 +16,12 @@ Conditions (``code``):
 - ``slowdown``: the speed server's ``suggest_slowdown`` hint: speed x ``slowdown_factor``.
 - ``curve``: the command's curve needs a lower speed than asked (lateral part of the ellipse).
 - ``localization``: no GPS/INS for ``gps_timeout_s``: speed 0 (the progress is unknown).
+- ``lag`` (issue 31; seed 004 adapts to "software performance and bandwidth"): the move
+  server's own inputs (GPS/INS, the speed server's state) arrived late or were lost: the worst
+  gap between arrivals over the last ``lag_window_s`` (``InputGaps``, on this server's own step
+  times, so its own stall counts too), less ``lag_allowance_s``, is extra blind time ``L``;
+  speed x ``lag_reaction_s / (lag_reaction_s + L)``, so the distance driven on stale state
+  within the reaction allowance stays what it was budgeted (not below ``lag_min_factor``).
 
 ``ConditionMonitor.update`` takes plain values; ``active`` is the current set; ``started``
 lists the conditions that became active at the last update (for the notices).
@@ -24,6 +30,7 @@ lists the conditions that became active at the last update (for the notices).
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import msgspec
 
@@ -50,6 +57,48 @@ class ConditionConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, k
     gps_timeout_s: float = 0.2        # same as the driving module's sensor timeout
     slip_gps_fresh_s: float = 0.05    # wheel vs ground speed only against fresh GPS/INS (5 samples):
                                       # a stale ground speed during a dropout is not slip
+    lag_allowance_s: float = 0.05     # arrival gaps up to this are normal: 5 of the 10 ms state
+                                      # periods, one of a 20 Hz stream (the XGV's reports)
+    lag_window_s: float = 1.0         # the worst gap is remembered this long
+    lag_reaction_s: float = 0.7       # the driving module's latency allowance (same figure)
+    lag_min_factor: float = 0.2       # never below this share: a gap beyond gps_timeout_s is a
+                                      # localization stop anyway
+
+
+LAG_EPS_S = 1e-6
+"""A gap must exceed the allowance by this (float sums of 10 ms steps are not exact)."""
+
+
+class InputGaps:
+    """Worst gap between arrivals of each watched topic over a window, on the owner's step
+    times (time passed in; issue 31)."""
+
+    def __init__(self, topics: tuple[str, ...], window_s: float) -> None:
+        self.topics = topics
+        self.window_s = window_s
+        self.last_s: dict[str, float] = {}
+        self.closed: deque[tuple[float, float, str]] = deque()   # (closed at, gap, topic)
+
+    def arrived(self, now_s: float, topics: set[str]) -> None:
+        for topic in self.topics:
+            if topic in topics:
+                last = self.last_s.get(topic)
+                if last is not None and now_s > last:
+                    self.closed.append((now_s, now_s - last, topic))
+                self.last_s[topic] = now_s
+        while self.closed and now_s - self.closed[0][0] > self.window_s:
+            self.closed.popleft()
+
+    def worst(self, now_s: float) -> tuple[float, str]:
+        """(gap, topic): the largest closed in the window, or the one still open."""
+        gap, topic = 0.0, ""
+        for _, g, t in self.closed:
+            if g > gap:
+                gap, topic = g, t
+        for t, last in self.last_s.items():
+            if now_s - last > gap:
+                gap, topic = now_s - last, t
+        return gap, topic
 
 
 class Reduction(msgspec.Struct, frozen=True):
@@ -96,7 +145,9 @@ class ConditionMonitor:
                wheel_speed_mps: float | None, traction_control: bool, hint: str,
                goal_speed_mps: float, throttle_pct: float, safety_mode: str,
                speed_server_estop: bool, gps_age_s: float, lateral_cap_mps: float,
-               degraded: list[str], actuator_cap_mps: float, actuator_reason: str) -> None:
+               degraded: list[str], actuator_cap_mps: float, actuator_reason: str,
+               abs_active: bool = False, input_gap_s: float = 0.0,
+               input_gap_topic: str = "") -> None:
         cfg, p = self.config, self.params
         found: dict[str, Reduction] = {}
         v = abs(speed_mps)
@@ -120,7 +171,9 @@ class ConditionMonitor:
                                        f"too steep: pitch {math.degrees(pitch):.1f} deg")
 
         reason = ""
-        if wheel_speed_mps is not None and v > cfg.slip_min_mps and gps_age_s <= cfg.slip_gps_fresh_s:
+        # ABS (issue 31) reads the wheels slow while braking at the limit: not slippery ground
+        if (wheel_speed_mps is not None and v > cfg.slip_min_mps and not abs_active
+                and gps_age_s <= cfg.slip_gps_fresh_s):
             diff = abs(wheel_speed_mps - speed_mps)
             if diff > max(cfg.slip_min_mps, cfg.slip_fraction * v):
                 reason = f"wheel speed {wheel_speed_mps:.2f} vs ground {speed_mps:.2f} m/s"
@@ -169,6 +222,14 @@ class ConditionMonitor:
             found["localization"] = Reduction("localization", 0.0,
                                               f"no GPS/INS for {gps_age_s:.2f} s")
 
+        extra_s = input_gap_s - cfg.lag_allowance_s
+        if extra_s > LAG_EPS_S:
+            factor = max(cfg.lag_min_factor, cfg.lag_reaction_s / (cfg.lag_reaction_s + extra_s))
+            found["lag"] = Reduction("lag", maxspeed_mps * factor,
+                                     f"inputs late or lost: {input_gap_topic} {input_gap_s:.2f} s "
+                                     f"apart (allowance {cfg.lag_allowance_s:.2f} s): speed x "
+                                     f"{factor:.2f}")
+
         self.started = [r for code, r in found.items() if code not in self.active] if found else []
         self.active = found
 
@@ -178,4 +239,4 @@ class ConditionMonitor:
         return min([r.cap_mps for r in self.active.values()])
 
 
-__all__ = ["ConditionConfig", "ConditionMonitor", "Reduction"]
+__all__ = ["ConditionConfig", "ConditionMonitor", "InputGaps", "Reduction"]

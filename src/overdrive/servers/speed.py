@@ -83,6 +83,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    tyres_at_limit,
 )
 from overdrive.safety.actuators import BRAKE_LOST, CUTS_ENGINE, PedalMonitor
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
@@ -629,7 +630,7 @@ class SpeedServer:
             speed_mps=self.speed_mps,
             accel_x_mps2=self.imu.accel_x_mps2 if imu_fresh and self.imu is not None else None,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
-            slipping=status.traction_control,
+            slipping=tyres_at_limit(status),
             # the brake's response is not judged while the parking brake adds to it (a weak
             # service brake would read as healthy, a failed one as weak)
             sample_response=not self.sensor_lost and not self.park_commanded,
@@ -804,7 +805,7 @@ class SpeedServer:
         probe_pct = self.actuator_monitor.probe_brake_pct(
             dt_s, loop_braking=loop.brake_pct > 0.0 or v_g > PROBE_TARGET_FRACTION * target_mps,
             keep_ok=(target_mps > 0.0 and target_mps >= v_g - PROBE_SLOWING_MPS
-                     and not status.traction_control),
+                     and not tyres_at_limit(status)),
             direction=direction, speed_mps=self.speed_mps, pitch_rad=pitch_rad,
             throttle_pct=status.throttle_pct, throttle_cmd_pct=loop.throttle_pct)
         if probe_pct is None:
@@ -847,6 +848,7 @@ class SpeedServer:
                               sin_pitch=math.sin(pitch), engine_rpm=status.engine_rpm,
                               throttle_pct=status.throttle_pct,
                               traction_control=status.traction_control,
+                              abs_active=status.abs_active is True,
                               held_cannot_climb=self.direction_hold.cannot_climb)
         self.hint = self.hints.update(now_s, view)
 

@@ -80,6 +80,8 @@ class HintInputs(msgspec.Struct, frozen=True):
     engine_rpm: float
     throttle_pct: float
     traction_control: bool
+    abs_active: bool = False          # ABS acts (issue 31): the wheels read slow while braking
+                                      # at the limit, which is not slippery ground
     held_cannot_climb: bool = False   # the direction hold keeps a start on the brakes: this
                                       # gear cannot beat the grade (direction_hold.cannot_climb)
 
@@ -120,7 +122,8 @@ class HintMonitor:
         p = self.params
         ground = view.speed_mps
         wheel = view.wheel_mps if view.wheel_mps is not None else ground
-        disagree = abs(wheel - ground) > max(cfg.slip_min_mps, cfg.slip_fraction * abs(ground))
+        disagree = (not view.abs_active
+                    and abs(wheel - ground) > max(cfg.slip_min_mps, cfg.slip_fraction * abs(ground)))
         self.slip_since_s = _timed(view.traction_control or disagree, self.slip_since_s, now_s)
         rpm_frac = (view.engine_rpm - p.idle_rpm) / max(p.redline_rpm - p.idle_rpm, 1.0)
         gear = view.gear

@@ -27,7 +27,8 @@ Model (SI units, x forward along the heading):
   the sliding force is ``mu Fz`` opposing the sliding velocity, collinear with the slip vector,
   which the unsaturated demand stands in for. Braking in a curve beyond grip therefore costs
   cornering force and the vehicle runs wide (understeer); neither direction has priority.
-  Saturated, the wheel speed departs from ground speed and the traction-control signal rises.
+  Saturated, the wheel speed departs from ground speed and the traction-control signal rises
+  (wheel spin or a slide) or, braking straight, the ABS signal (issue 31: reported apart).
 - Kinematic bicycle: curvature ``k = tan(delta) / L`` (positive right), heading rate ``-v * k``.
   The steering actuator has a rate limit and a first-order lag. The curvature driven is the
   lateral force the circle leaves over ``m v^2`` (understeer).
@@ -124,6 +125,8 @@ class Plant:
         self._engine_request = engine_running
         self.odometer_m = 0.0
         self.slip = False
+        self.traction_slip = False
+        self.abs_active = False
         self.wheel_speed_mps = 0.0
         self.pitch_rad = 0.0
         self.roll_rad = 0.0
@@ -332,6 +335,8 @@ class Plant:
         self.curvature_1pm = k
         self.lat_accel_mps2 = v_new * v_new * k
         self.slip = slip or abs_active
+        self.traction_slip = slip       # wheel spin or a slide: the traction-control signal
+        self.abs_active = abs_active    # braking beyond grip: the ABS signal (issue 31)
         if abs_active and abs(v_new) > STOPPED_MPS:
             self.wheel_speed_mps = v_new * 0.85
         else:

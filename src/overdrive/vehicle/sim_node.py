@@ -305,7 +305,7 @@ class VehicleSim:
         status = VehicleStatus(
             gear=plant.gear, shifting=plant.shift_target is not None, engine=plant.engine,
             engine_rpm=plant.engine_rpm, start_failed=plant.start_failed,
-            traction_control=plant.slip,
+            traction_control=plant.traction_slip, abs_active=plant.abs_active,
             steer_pct=100.0 * road_wheel / p.max_steer_rad,
             throttle_pct=100.0 * plant.throttle, brake_pct=100.0 * plant.brake,
             safety_mode=self.mode, computer_speed=computer_speed,
