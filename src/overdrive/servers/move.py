@@ -274,6 +274,7 @@ class MoveServer:
         self.next_estimates_s = -math.inf
         self.limit_mps = 0.0
         self.remaining_m = 0.0
+        self._reductions_noticed: set[str] = set()   # reductions in force already noticed
         self._sensor_rejection = ""
         self._brake_ell_cache: tuple[float, Ellipse, Ellipse] | None = None
         self._brakings = BrakingCache()
@@ -1050,12 +1051,26 @@ class MoveServer:
             gps_age_s=now_s - self.gps_s if self.gps is not None else 0.0,
             lateral_cap_mps=v_lat, degraded=self.model.degraded(),
             actuator_cap_mps=actuator_cap, actuator_reason=why)
-        if active is not None and self.phase not in ("stopping", "estopped"):
-            for r in self.monitor.started:
-                out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
-                                                 code=r.code, reason=r.reason)))
+        self._reduction_notices(active is not None and self.phase not in ("stopping",
+                                                                           "estopped"), out)
         limit = min(maxspeed, self.monitor.cap_mps())
         self.limit_mps = max(limit, 0.0) if active is not None else 0.0
+
+    def _reduction_notices(self, commanded: bool, out: list) -> None:
+        """A ``speed_reduction`` notice for every reduction that slows a command and was not
+        noticed yet: one that starts under a command, and one already in force when a command
+        arrives (a steep slope before the MOVE, a reduction that began while stopping: issue
+        31 item 8). Once per reduction while it lasts (commands replacing each other under it
+        are not told again); one that ends and starts again is noticed again."""
+        active = self.monitor.active
+        self._reductions_noticed.intersection_update(active)
+        if not commanded:
+            return
+        for code, r in active.items():
+            if code not in self._reductions_noticed:
+                self._reductions_noticed.add(code)
+                out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
+                                                 code=r.code, reason=r.reason)))
 
     def _actuator_cap(self, maxspeed: float, k: float, grade: float,
                       roll: float) -> tuple[float, str]:
