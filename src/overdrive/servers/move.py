@@ -66,6 +66,7 @@ from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     ENGINE_CUT_MODES,
+    PAUSE_STOP_MODES,
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
@@ -275,6 +276,9 @@ class MoveServer:
         self.limit_mps = 0.0
         self.remaining_m = 0.0
         self._reductions_noticed: set[str] = set()   # reductions in force already noticed
+        self.pause_end_m: float | None = None   # a pause's stop: the discarded command's end
+                                                # (progress along ``direction``), kept as the
+                                                # authorization until the vehicle stands
         self._sensor_rejection = ""
         self._brake_ell_cache: tuple[float, Ellipse, Ellipse] | None = None
         self._brakings = BrakingCache()
@@ -512,6 +516,7 @@ class MoveServer:
 
         event = self._classify(now_s, out)
         self._set_phase(next_phase(self.phase, event))
+        self._end_pause_stop(now_s)
         self._limits(now_s, out)
         self._outputs(now_s, out)
         return out
@@ -678,6 +683,7 @@ class MoveServer:
         self.estop_reason = ""
         self.curvature_1pm = float(cmd.curvature_1pm)
         self.active = ActiveCommand(cmd, direction, odometer0_m)
+        self.pause_end_m = None
         self.hold_clear_since_accept = False   # a "failed" hold from before is not this command's
         self._set_phase(next_phase(self.phase, event))
 
@@ -768,10 +774,11 @@ class MoveServer:
         return ""
 
     def _stop(self, command_id: int, message: str, out: list) -> None:
-        """STOP: accepted and acted on at once."""
+        """STOP: accepted and acted on at once (a pause's stop too: authorization 0)."""
         out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind="stop",
                                                 accepted=True, message=message)))
         self.active = None
+        self.pause_end_m = None
         self._set_phase(next_phase(self.phase, "stop_cmd"))
 
     def _restrict(self, now_s: float, cmd: MoveCommand, command_id: int, why: str,
@@ -883,6 +890,17 @@ class MoveServer:
             return "stopped"
         return None
 
+    def _end_pause_stop(self, now_s: float) -> None:
+        """A pause's stop ends (authorization 0 from here) once the vehicle stands, is back in
+        drive-by-wire (no command in force: stop now), or an e-stop latched."""
+        if self.pause_end_m is None:
+            return
+        status = self.status
+        back = status is not None and status.safety_mode == "drive-by-wire" \
+            and status.computer_speed
+        if back or self.phase == "estopped" or self._stopped(now_s):
+            self.pause_end_m = None
+
     def _direction_failed(self, out: list) -> bool:
         """True when the speed server holds the vehicle after a direction fault (issue 16): the
         active command is abandoned and reported failed (never done), with the fault's words.
@@ -947,7 +965,14 @@ class MoveServer:
         discarded = self.active
         self.active = None
         self.engaged = False
-        engine_off = status.engine != "running" or status.safety_mode in ENGINE_CUT_MODES
+        if discarded is not None and not mode_ok and (status.safety_mode in PAUSE_STOP_MODES
+                                                      or status.safety_mode == "drive-by-wire"):
+            # seed 000: a pause "brings the vehicle to a stop using a constant (user set)
+            # acceleration": the command's end stays the authorization while it stops (the
+            # driving module stops at the pause rate inside it), never extended
+            self.pause_end_m = self.progress_m(discarded.direction) + self.remaining_m
+        engine_off = status.engine != "running" or status.safety_mode == "inactive" or (
+            status.safety_mode in ENGINE_CUT_MODES and self.params.estop_engine_cut != "never")
         self.hold_state = "parked" if engine_off else "paused"
         what = (f"command {discarded.command.command_id} discarded" if discarded is not None
                 else "no command active")
@@ -1123,6 +1148,8 @@ class MoveServer:
             out.append((Topic.DRIVE_MODE, mode))
         moving = self.phase in ("starting", "shifting", "moving") and self.active is not None
         authorized = self.remaining_m if moving else 0.0
+        if self.pause_end_m is not None:   # a pause's stop: what was left, used up as it goes
+            authorized = max(self.pause_end_m - self.progress_m(self.direction), 0.0)
         if self.direction == "forward":   # an untrusted radar: only the range last seen clear
             authorized = min(authorized, self.corridor.forward_cap_m(
                 self.progress_m("forward"), cfg.estop_margin_m))
