@@ -142,3 +142,19 @@ def test_brakes_weakened_below_the_pause_rate_are_refused_naming_the_brakes() ->
     with pytest.raises(VehicleSpecError) as err:
         with_overrides(PRESETS["escape-hybrid"], {"max_brake_decel_mps2": 2.4})
     assert err.value.field == "max_brake_decel_mps2" and "pause_decel_mps2" in err.value.reason
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+@pytest.mark.parametrize("via", ["move", "driving"])
+@pytest.mark.parametrize("pause_s", [0.3, 1.0, 2.0])
+def test_a_pause_released_before_the_vehicle_stands_stops_it_now(preset: str, via: str,
+                                                                  pause_s: float) -> None:
+    """Back in drive-by-wire while still stopping, the stack has no command in force: it stops
+    now (the judge's unintended_motion: no further than the shortest stop from the release),
+    and nothing moves after."""
+    result = drive(preset, via, 120.0, [{"at_s": ON_S, "safestop": "pause"},
+                                        {"at_s": ON_S + pause_s, "safestop": "run"}])
+    v_release, _, _ = stop_after(result, ON_S + pause_s)
+    assert v_release > 1.0                       # still moving at the release
+    assert abs(float(result.trace[-1]["speed_mps"])) < STOPPED_MPS
+    assert result.summary["violations"] == []

@@ -73,6 +73,7 @@ from overdrive.servers.move_arrivals import sample_times
 
 SOURCE = "driving"
 TIME_EPS_S = 1e-9   # slack when comparing simulated times built from integer ticks
+END_EPS_M = 1e-6    # slack when comparing two authorizations' ends (float sums of odometers)
 
 SENSOR_TOPICS = frozenset({Topic.GPS_INS, Topic.IMU, Topic.WHEEL_SPEED})
 """Periodic sensors whose samples queued during a stall are dated at their own time
@@ -717,8 +718,11 @@ class DrivingModule:
                 if self._after_release(msg.source, msg.issued_s, now_s):
                     self._resume(msg.source, out)   # its own authorization after the release
                 elif self.pause_stop:
-                    # the pause's stop: a closer end applies, a further one never
-                    self._held(msg.source, msg.reverse, out)
+                    # the pause's stop: a closer end applies, a further one never (one that
+                    # reaches further is noticed as held; the move server's kept end is not)
+                    kept = self.authorizations.by_source.get((msg.source, msg.reverse))
+                    if kept is None or odometer0 + distance_m > sum(kept) + END_EPS_M:
+                        self._held(msg.source, msg.reverse, out)
                     self.authorizations.restrict(msg.source, msg.reverse, odometer0 + distance_m)
                     continue
                 else:
