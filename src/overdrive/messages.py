@@ -319,7 +319,15 @@ EngineState = Literal["off", "cranking", "running"]
 
 
 ENGINE_CUT_MODES = frozenset({"estop-disable", "inactive"})
-"""``VehicleStatus.safety_mode`` values in which the vehicle kills its engine (seed 000)."""
+"""``VehicleStatus.safety_mode`` values in which the vehicle may kill its engine (seed 000; in
+e-stop disable as its ``estop_engine_cut`` says)."""
+
+PAUSE_STOP_MODES = frozenset({"software-pause", "estop-pause", "manual-override",
+                              "emergency-manual-override"})
+"""``VehicleStatus.safety_mode`` values whose stop is a pause's, at the vehicle's
+``pause_decel_mps2`` (seed 000: a pause "brings the vehicle to a stop using a constant (user
+set) acceleration"; the door's software pause; an override, where the human brakes): not
+e-stop disable's full brake."""
 
 
 class VehicleStatus(Message, frozen=True):

@@ -44,7 +44,7 @@ from overdrive.jaus import (
 )
 from overdrive.messages import SafetyDevices
 from overdrive.scenario.vehicles import PRESETS
-from overdrive.vehicle.xgv import LAPSE_DECEL_MPS2, gear_codes, gear_from_code, jaus_timestamp
+from overdrive.vehicle.xgv import gear_codes, gear_from_code, jaus_timestamp
 from tests.xgv.xgv_helpers import CLIENT, MPD, NM, OTHER, Peer, make_sim
 
 
@@ -241,7 +241,7 @@ def test_motion_profile_mpd_takes_the_pd_tracks_and_lapses_to_a_stop() -> None:
     plant = sim.core.plant
     assert plant.speed_mps == pytest.approx(4.0, abs=0.15)
     assert plant.curvature_1pm == pytest.approx(-0.02, abs=0.002)
-    client.step(int(4.0 / LAPSE_DECEL_MPS2 / 0.01) + 150)       # no refresh: the motion lapses
+    client.step(int(4.0 / sim.params.pause_decel_mps2 / 0.01) + 150)   # no refresh: it lapses
     assert abs(plant.speed_mps) < 0.01
 
 

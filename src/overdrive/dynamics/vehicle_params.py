@@ -104,6 +104,13 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
                                                  # hydraulics failed (weak brake: its force scales)
     park_brake_survives_actuator: bool = True    # it still works with the service brake's
                                                  # by-wire actuator stuck (its own actuator)
+    # the vehicle's safety devices (seed 000; issue 31 items 2 and 5): set on the vehicle
+    # itself (an XGV's configuration), stated here so the stack and the simulator agree
+    pause_decel_mps2: float = 2.5       # a SafeStop pause, software pause (door) or override
+                                        # stop "brings the vehicle to a stop using a constant
+                                        # (user set) acceleration": this one (the XGV's 2.5)
+    estop_engine_cut: str = "standstill"  # e-stop disable shuts the engine off "if configured
+                                          # to do so": never | standstill | always (ESTOP_ENGINE_CUTS)
 
     @property
     def front_overhang_m(self) -> float:
@@ -214,6 +221,8 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "park_brake_apply_s": (0.01, 10.0, "electric parking brakes ~0.5-1 s, a lever actuator a "
                                        "few seconds"),
     "park_brake_max_apply_mps": (0.0, 70.0, "0: only at rest; up to the fastest speed driven"),
+    "pause_decel_mps2": (0.1, 15.0, "above 0: 0.1 m/s^2 stops 8 m/s in 80 s; at most the "
+                                    "brakes' full deceleration (checked against this vehicle's)"),
 }
 """Physically plausible range of every number a scenario may override (docs/scenarios.md)."""
 
@@ -252,10 +261,26 @@ SECONDARY_BRAKING: tuple[str, ...] = (
 """The parking brake's parameters (issue 30 item 4): the shipped files state them; a file
 written before them gets the defaults above (no parking brake usable while moving)."""
 
+SAFETY_DEVICES: tuple[str, ...] = ("pause_decel_mps2", "estop_engine_cut")
+"""How the vehicle's own pause and e-stop act (issue 31): the shipped files state them; a file
+written before them gets the defaults above (the XGV's 2.5 m/s^2 pause, the engine cut at rest)."""
+
+ESTOP_ENGINE_CUTS: dict[str, str] = {
+    "never": "the engine keeps running in e-stop disable",
+    "standstill": "cut once the vehicle stands (at once if the throttle does not close)",
+    "always": "cut at once, moving or not (power steering and brake assist lost while moving)",
+}
+"""``estop_engine_cut`` values (seed 000's e-stop disable: "shut off the engine (if configured
+to do so)"); docs/drive-your-own-vehicle.md, "Safety devices", justifies the default."""
+
+CHOICES: dict[str, dict[str, str]] = {"estop_engine_cut": ESTOP_ENGINE_CUTS}
+"""Parameters that take one of a few names."""
+
 OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob", *SENSOR_CHECKS,
-                              *SECONDARY_BRAKING})
+                              *SECONDARY_BRAKING, *SAFETY_DEVICES})
 """Simulation knobs (failed crank attempts, 0 unless stated), the sensor cross-checks'
-thresholds and the parking brake (defaults unless stated): every other field is required."""
+thresholds, the parking brake and the safety devices (defaults unless stated): every other field
+is required."""
 
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 _FIELD_TYPES: dict[str, Any] = {f.name: f.type for f in msgspec.structs.fields(VehicleParams)}
@@ -310,6 +335,9 @@ def _check_value(field: str, value: Any, expected: Any,
                                               f"got {_show(value)}")
     elif type(value) is not expected:
         raise VehicleSpecError(field, f"must be a {_TYPE_WORDS[expected]}, got {_show(value)}")
+    elif field in CHOICES and value not in CHOICES[field]:
+        raise VehicleSpecError(field, f"must be one of {', '.join(CHOICES[field])}, got "
+                                      f"{_show(value)}")
 
 
 _TYPE_WORDS = {float: "number", int: "whole number", bool: "boolean (true/false)", str: "string"}
@@ -360,6 +388,14 @@ def _check_consistent(params: VehicleParams, given: set[str]) -> None:
         field = "idle_rpm" if "idle_rpm" in given else "redline_rpm"
         raise VehicleSpecError(field, f"idle_rpm {params.idle_rpm:g} must be below redline_rpm "
                                       f"{params.redline_rpm:g}")
+    tyres_mps2 = min(params.max_brake_decel_mps2, params.max_decel_mps2)
+    if params.pause_decel_mps2 > tyres_mps2:
+        field = next((f for f in ("pause_decel_mps2", "max_brake_decel_mps2",
+                                  "stopping_distance_60mph_m") if f in given), "pause_decel_mps2")
+        raise VehicleSpecError(field, f"pause_decel_mps2 {params.pause_decel_mps2:g} is more than "
+                                      f"the tyres hold: the full brake's {tyres_mps2:.3g} m/s^2 "
+                                      f"(max_brake_decel_mps2, and the 60-0 mph stop's "
+                                      f"v^2 / 2d from stopping_distance_60mph_m)")
     for i, gear in enumerate(params.gears):
         if gear.direction == 0 and gear.engine_brake_decel_mps2 > 0.0:
             raise VehicleSpecError(f"gears[{i}].engine_brake_decel_mps2",

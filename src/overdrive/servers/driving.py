@@ -50,6 +50,7 @@ from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     ENGINE_CUT_MODES,
+    PAUSE_STOP_MODES,
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
@@ -74,6 +75,7 @@ from overdrive.servers.move_arrivals import sample_times
 
 SOURCE = "driving"
 TIME_EPS_S = 1e-9   # slack when comparing simulated times built from integer ticks
+END_EPS_M = 1e-6    # slack when comparing two authorizations' ends (float sums of odometers)
 
 SENSOR_TOPICS = frozenset({Topic.GPS_INS, Topic.IMU, Topic.WHEEL_SPEED})
 """Periodic sensors whose samples queued during a stall are dated at their own time
@@ -430,9 +432,21 @@ class Request(msgspec.Struct, frozen=True):
     drive: bool = False     # the goal speed may be sent (else speed 0)
 
 
-def _engine_off(status: VehicleStatus) -> bool:
-    """The vehicle's engine is off or about to be (seed 000: e-stop disable, inactive)."""
-    return status.engine != "running" or status.safety_mode in ENGINE_CUT_MODES
+def _engine_off(status: VehicleStatus, params: VehicleParams) -> bool:
+    """The vehicle's engine is off or about to be (seed 000: e-stop disable shuts it off "if
+    configured to do so", ``estop_engine_cut`` not ``never``: at once or once it stands;
+    inactive)."""
+    if status.engine != "running" or status.safety_mode == "inactive":
+        return True
+    return status.safety_mode in ENGINE_CUT_MODES and params.estop_engine_cut != "never"
+
+
+def _pause_stop_cause(cause: str) -> bool:
+    """An interruption whose stop is a pause's, at the vehicle's pause rate: the vehicle left
+    drive-by-wire for seed 000's pauses, the door, an override (``PAUSE_STOP_MODES``), or lost
+    computer speed control; not an e-stop, nor a stop the speed server made on its own."""
+    mode, _, rest = cause.partition(",")
+    return mode in PAUSE_STOP_MODES or (mode == "drive-by-wire" and bool(rest))
 
 
 def client_request(target: str, server_state: str, server_gear: str, want_gear: str,
@@ -594,6 +608,9 @@ class DrivingModule:
         self._zero_after_release: set[str] = set()   # sources whose 0 arrived after it
         self._vehicle_key: tuple[str, bool] | None = None   # (safety mode, computer speed) seen
         self._status_cause = ""   # an interruption seen in this step's statuses
+        self.pause_stop = False   # a pause-like interruption's stop under way (_pause_rate)
+        self._pause_sent = False  # ... and the SPSS sent last asked for it
+        self._pause_cause = ""    # ... its cause, for the hold once it ends
 
     # ------------------------------------------------------------------ inputs
 
@@ -708,6 +725,14 @@ class DrivingModule:
             if distance_m > 0.0 and (self.interrupted or msg.source in self._latched):
                 if self._after_release(msg.source, msg.issued_s, now_s):
                     self._resume(msg.source, out)   # its own authorization after the release
+                elif self.pause_stop:
+                    # the pause's stop: a closer end applies, a further one never (one that
+                    # reaches further is noticed as held; the move server's kept end is not)
+                    kept = self.authorizations.by_source.get((msg.source, msg.reverse))
+                    if kept is None or odometer0 + distance_m > sum(kept) + END_EPS_M:
+                        self._held(msg.source, msg.reverse, out)
+                    self.authorizations.restrict(msg.source, msg.reverse, odometer0 + distance_m)
+                    continue
                 else:
                     distance_m = self._held(msg.source, msg.reverse, out)
             self.authorizations.update(msg.source, msg.reverse, distance_m, odometer0)
@@ -779,19 +804,27 @@ class DrivingModule:
         cause = self._speed_stop_cause or self._status_cause
         self._speed_stop_cause = self._status_cause = ""
         if status is not None:
-            if self.interrupted and _engine_off(status):
+            if self.interrupted and _engine_off(status, self.params):
                 self.hold_state = "parked"
             if self._vehicle_ok and (self._latched or self.interrupted) \
                     and self._release_s is None:
                 self._release_s = now_s   # the vehicle is back: what is issued from now counts
+            if self._vehicle_ok and self.pause_stop:
+                self.end_pause_stop()     # back before it stood: stop now, as without a command
         if not cause:
             return
         held = sorted({source for source, _ in self.authorizations.by_source})
         self._latched.update(held)
         self._release_s = now_s if self._vehicle_ok is not False else None
         self._zero_after_release.clear()
-        self._hold_every_source(f"interrupted ({cause})")
-        self.hold_state = "parked" if status is not None and _engine_off(status) else "paused"
+        pause = _pause_stop_cause(cause)
+        self._pause_cause = f"interrupted ({cause})"
+        if pause:
+            self.pause_stop = True   # held at 0 once it stands (end_pause_stop)
+        else:
+            self.end_pause_stop()
+        self.hold_state = ("parked" if status is not None and _engine_off(status, self.params)
+                           else "paused")
         self._held_noticed.clear()
         already = self.interrupted
         self.interrupted = cause
@@ -800,11 +833,33 @@ class DrivingModule:
         self.unasked_stops += 1
         self.last_unasked_stop = "interrupted"
         if not already:
+            how = (f"kept, never extended, while the vehicle stops at its pause rate "
+                   f"({self.params.pause_decel_mps2:g} m/s^2, harder only as they need), then "
+                   f"held at 0" if pause else "held at 0")
             out.append((Topic.NOTICE, Notice(
                 kind="latched", source=SOURCE, code=cause,
-                reason=f"interrupted ({cause}): authorizations of {held or 'no source'} held "
-                       f"at 0, the speed server asked for {self.hold_state}; nothing moves "
+                reason=f"interrupted ({cause}): authorizations of {held or 'no source'} {how}, "
+                       f"the speed server asked for {self.hold_state}; nothing moves "
                        f"until a new authorization after the vehicle is back")))
+
+    def end_pause_stop(self) -> None:
+        """The pause's stop is over (the vehicle stands, is back in drive-by-wire, or another
+        cause stopped it): every authorization held at 0 from here (``_hold_every_source``)."""
+        self.pause_stop = False
+        self._hold_every_source(self._pause_cause)
+
+    def _pause_rate_mps2(self, remaining_m: float, v: float) -> float:
+        """The deceleration of a pause's stop (seed 000: a pause "brings the vehicle to a stop
+        using a constant (user set) acceleration"): the vehicle's ``pause_decel_mps2``, or
+        the least that still stops inside what is left of the authorization (the normal
+        path's reaction allowed at speed) when that is harder. The hard braking of
+        ``_hard_brake`` takes over where even the ellipse's would not do."""
+        cfg = self.config
+        rate = self.params.pause_decel_mps2
+        if math.isfinite(remaining_m):
+            room_m = remaining_m - cfg.stop_margin_m - v * cfg.normal_stop_reaction_s
+            rate = max(rate, v * v / (2.0 * room_m)) if room_m > 0.0 else cfg.max_rate_mps2
+        return rate
 
     def _hold_every_source(self, why: str) -> None:
         """Every authorization held at 0; a streaming source until it sends 0 (``traffic_lost``:
@@ -847,6 +902,8 @@ class DrivingModule:
         self._held_noticed = {k for k in self._held_noticed if k[0] != source}
         if not self.interrupted:
             return
+        if self.pause_stop:   # (not reached: a source resumes only once the vehicle is back)
+            self.end_pause_stop()
         out.append((Topic.NOTICE, Notice(
             kind="resumed", source=SOURCE, code=self.interrupted,
             reason=f"a new authorization from {source!r} after the interruption "
@@ -992,6 +1049,9 @@ class DrivingModule:
 
         if self.heard_s:
             self._watch_command_traffic(v, out)
+        pause_starts = self.pause_stop and not self._pause_sent
+        if self.pause_stop and v < cfg.stopped_mps:
+            self.end_pause_stop()   # it stands: every authorization held at 0 from here
         source_limit = self.limits.lowest_mps(now_s)
         remaining = self.authorizations.remaining_m(reverse, self._progress_m(reverse))
         self._plan_gear(now_s, v, source_limit, pitch, remaining)
@@ -1022,6 +1082,7 @@ class DrivingModule:
         self.goal_mps = goal
 
         waiting = server is None and now_s < self.first_s + cfg.spss_period_s - TIME_EPS_S
+        urgent = urgent or (pause_starts and self.pause_stop)   # the pause's rate at once
         if (now_s + TIME_EPS_S >= self.next_spss_s or urgent) and not waiting:
             overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
             spss_limits = limits
@@ -1038,6 +1099,10 @@ class DrivingModule:
                 # precedence and the tyres share what they give (docs/driving-module.md,
                 # "Grip lost in a curve")
                 rate = self.params.max_brake_decel_mps2
+            elif self.pause_stop:
+                rate = self._pause_rate_mps2(remaining, v)
+                self.a_signed_mps2 = -rate
+            self._pause_sent = self.pause_stop
             if not request.drive:
                 speed_cmd = 0.0
             out.append((Topic.SET_SPEED, set_speed_message(

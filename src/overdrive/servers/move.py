@@ -68,6 +68,7 @@ from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, GearTable, VehicleParams
 from overdrive.messages import (
     ENGINE_CUT_MODES,
+    PAUSE_STOP_MODES,
     AdvanceAuthorization,
     DriveMode,
     DrivingStatus,
@@ -291,6 +292,10 @@ class MoveServer:
         self.next_estimates_s = -math.inf
         self.limit_mps = 0.0
         self.remaining_m = 0.0
+        self._reductions_noticed: set[str] = set()   # reductions in force already noticed
+        self.pause_end_m: float | None = None   # a pause's stop: the discarded command's end
+                                                # (progress along ``direction``), kept as the
+                                                # authorization until the vehicle stands
         self._sensor_rejection = ""
         self._brake_ell_cache: tuple[float, Ellipse, Ellipse] | None = None
         self._brakings = BrakingCache()
@@ -529,6 +534,7 @@ class MoveServer:
 
         event = self._classify(now_s, out)
         self._set_phase(next_phase(self.phase, event))
+        self._end_pause_stop(now_s)
         self._limits(now_s, out)
         self._outputs(now_s, out)
         return out
@@ -708,6 +714,7 @@ class MoveServer:
         self.estop_reason = ""
         self.curvature_1pm = float(cmd.curvature_1pm)
         self.active = ActiveCommand(cmd, direction, odometer0_m)
+        self.pause_end_m = None
         self.hold_clear_since_accept = False   # a "failed" hold from before is not this command's
         self._set_phase(next_phase(self.phase, event))
 
@@ -798,10 +805,11 @@ class MoveServer:
         return ""
 
     def _stop(self, command_id: int, message: str, out: list) -> None:
-        """STOP: accepted and acted on at once."""
+        """STOP: accepted and acted on at once (a pause's stop too: authorization 0)."""
         out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind="stop",
                                                 accepted=True, message=message)))
         self.active = None
+        self.pause_end_m = None
         self._set_phase(next_phase(self.phase, "stop_cmd"))
 
     def _restrict(self, now_s: float, cmd: MoveCommand, command_id: int, why: str,
@@ -913,6 +921,17 @@ class MoveServer:
             return "stopped"
         return None
 
+    def _end_pause_stop(self, now_s: float) -> None:
+        """A pause's stop ends (authorization 0 from here) once the vehicle stands, is back in
+        drive-by-wire (no command in force: stop now), or an e-stop latched."""
+        if self.pause_end_m is None:
+            return
+        status = self.status
+        back = status is not None and status.safety_mode == "drive-by-wire" \
+            and status.computer_speed
+        if back or self.phase == "estopped" or self._stopped(now_s):
+            self.pause_end_m = None
+
     def _direction_failed(self, out: list) -> bool:
         """True when the speed server holds the vehicle after a direction fault (issue 16): the
         active command is abandoned and reported failed (never done), with the fault's words.
@@ -977,7 +996,14 @@ class MoveServer:
         discarded = self.active
         self.active = None
         self.engaged = False
-        engine_off = status.engine != "running" or status.safety_mode in ENGINE_CUT_MODES
+        if discarded is not None and not mode_ok and (status.safety_mode in PAUSE_STOP_MODES
+                                                      or status.safety_mode == "drive-by-wire"):
+            # seed 000: a pause "brings the vehicle to a stop using a constant (user set)
+            # acceleration": the command's end stays the authorization while it stops (the
+            # driving module stops at the pause rate inside it), never extended
+            self.pause_end_m = self.progress_m(discarded.direction) + self.remaining_m
+        engine_off = status.engine != "running" or status.safety_mode == "inactive" or (
+            status.safety_mode in ENGINE_CUT_MODES and self.params.estop_engine_cut != "never")
         self.hold_state = "parked" if engine_off else "paused"
         what = (f"command {discarded.command.command_id} discarded" if discarded is not None
                 else "no command active")
@@ -1084,12 +1110,26 @@ class MoveServer:
             lateral_cap_mps=v_lat, degraded=self.model.degraded(),
             actuator_cap_mps=actuator_cap, actuator_reason=why,
             input_gap_s=gap_s, input_gap_topic=gap_topic)
-        if active is not None and self.phase not in ("stopping", "estopped"):
-            for r in self.monitor.started:
-                out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
-                                                 code=r.code, reason=r.reason)))
+        self._reduction_notices(active is not None and self.phase not in ("stopping",
+                                                                           "estopped"), out)
         limit = min(maxspeed, self.monitor.cap_mps())
         self.limit_mps = max(limit, 0.0) if active is not None else 0.0
+
+    def _reduction_notices(self, commanded: bool, out: list) -> None:
+        """A ``speed_reduction`` notice for every reduction that slows a command and was not
+        noticed yet: one that starts under a command, and one already in force when a command
+        arrives (a steep slope before the MOVE, a reduction that began while stopping: issue
+        31 item 8). Once per reduction while it lasts (commands replacing each other under it
+        are not told again); one that ends and starts again is noticed again."""
+        active = self.monitor.active
+        self._reductions_noticed.intersection_update(active)
+        if not commanded:
+            return
+        for code, r in active.items():
+            if code not in self._reductions_noticed:
+                self._reductions_noticed.add(code)
+                out.append((Topic.NOTICE, Notice(kind="speed_reduction", source=SOURCE,
+                                                 code=r.code, reason=r.reason)))
 
     def _actuator_cap(self, maxspeed: float, k: float, grade: float,
                       roll: float) -> tuple[float, str]:
@@ -1177,6 +1217,8 @@ class MoveServer:
             out.append((Topic.DRIVE_MODE, mode))
         moving = self.phase in ("starting", "shifting", "moving") and self.active is not None
         authorized = self.remaining_m if moving else 0.0
+        if self.pause_end_m is not None:   # a pause's stop: what was left, used up as it goes
+            authorized = max(self.pause_end_m - self.progress_m(self.direction), 0.0)
         if self.direction == "forward":   # an untrusted radar: only the range last seen clear
             authorized = min(authorized, self.corridor.forward_cap_m(
                 self.progress_m("forward"), cfg.estop_margin_m))

@@ -764,20 +764,13 @@ class SpeedServer:
         v_g = direction * self.speed_mps
         a_g = direction * self.accel_mps2
         status = self.status
+        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
+        sin_pitch = direction * math.sin(pitch)
         if self.latched or status is None or not status.computer_speed:
-            # the vehicle's pause logic owns the pedals (it takes the larger brake): a stop asked
-            # at full deceleration (hard braking, issue 17) still gets all of it while moving
-            hard = (self.target_mps == 0.0 and self.rate_mps2 >= p.max_brake_decel_mps2
-                    and not self.stopped)
-            brake = 100.0 if self.latched or hard else self.config.hold_brake_pct
-            self.controller.reset(direction * self.speed_filt_mps, a_g, brake)
-            self.direction_hold.reset()
-            return PedalCommand(throttle_pct=0.0, brake_pct=brake, source=SOURCE), powertrain
+            return self._paused_pedals(dt_s, v_g, a_g, sin_pitch, gear), powertrain
         target = 0.0
         if self.goal == "run":
             target = min(self.target_mps, gear.max_speed_mps * self.config.gear_cap_fraction)
-        pitch = self.gps.pitch_rad if self.gps is not None else 0.0
-        sin_pitch = direction * math.sin(pitch)
         result = self.controller.step(dt_s, target, self.rate_mps2, v_g, a_g, sin_pitch, gear,
                                       self.stopped)
         hold = self.hold_command = self.direction_hold.step(
@@ -795,6 +788,27 @@ class SpeedServer:
             return probe, powertrain
         return (PedalCommand(throttle_pct=result.throttle_pct, brake_pct=result.brake_pct,
                              source=SOURCE), powertrain)
+
+    def _paused_pedals(self, dt_s: float, v_g: float, a_g: float, sin_pitch: float,
+                       gear: Gear) -> PedalCommand:
+        """Pedals while the vehicle's pause logic owns them (it takes the larger brake), or
+        under a latched e-stop (full brake). Moving, the stop the vehicle makes (seed 000: a
+        pause "brings the vehicle to a stop using a constant (user set) acceleration"): the
+        loop brings the speed to 0 at the vehicle's ``pause_decel_mps2``, or at the client's
+        rate when it asks a harder stop (an authorization that needs it; full deceleration:
+        hard braking, issue 17); at a standstill the hold (seed 000's 50 %)."""
+        p, status = self.params, self.status
+        if self.latched or status is None or self.stopped:
+            hard = (status is None and self.target_mps == 0.0 and not self.stopped
+                    and self.rate_mps2 >= p.max_brake_decel_mps2)
+            brake = 100.0 if self.latched or hard else self.config.hold_brake_pct
+            self.controller.reset(gear.direction * self.speed_filt_mps, a_g, brake)
+            self.direction_hold.reset()
+            return PedalCommand(throttle_pct=0.0, brake_pct=brake, source=SOURCE)
+        rate = max(p.pause_decel_mps2, self.rate_mps2 if self.target_mps == 0.0 else 0.0)
+        result = self.controller.step(dt_s, 0.0, rate, v_g, a_g, sin_pitch, gear, self.stopped)
+        self.direction_hold.reset()
+        return PedalCommand(throttle_pct=0.0, brake_pct=result.brake_pct, source=SOURCE)
 
     def _brake_probe(self, dt_s: float, loop: Any, target_mps: float, v_g: float,
                      direction: int, pitch_rad: float, status: VehicleStatus) -> PedalCommand | None:

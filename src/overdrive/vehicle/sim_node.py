@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 import msgspec
 
+from overdrive.dynamics.speed_control import resistance_mps2
 from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.messages import (
     SIM_FAULTS_TOPIC,
@@ -38,10 +39,12 @@ from overdrive.safety.watchdog import Watchdog
 from overdrive.vehicle.modes import PAUSE_MODES, computer_axes, safety_mode
 from overdrive.vehicle.plant import STOPPED_MPS, ActuatorFaults, Plant, World
 
-PAUSE_DECEL_MPS2 = 2.5       # SafeStop pause: "constant (user set) acceleration" (seed 000); XGV default-like
 PAUSE_HOLD_BRAKE_PCT = 50.0  # seed 000: once stopped in a pause, 50 % braking effort
 DRIVER_BRAKE_PCT = 30.0      # simulated safety driver under manual override: firm, controlled stop
 COMMAND_TIMEOUT_S = 0.2     # seed 001's 200 ms SPSS budget, applied by the vehicle to pedal commands
+ESTOP_THROTTLE_OPEN = 0.1     # e-stop disable, estop_engine_cut "standstill": a throttle still
+ESTOP_THROTTLE_CLOSE_S = 0.5  # open beyond this share this long (3 throttle lags of 0.15 s: a
+                              # closing one is below 5 %) does not close: the engine is cut at once
 WATCHED_SOURCES = frozenset({"speed"})   # periodic controllers; one-shot scenario commands are not
 WORLD_TOPIC = SIM_WORLD_TOPIC    # scenario -> simulator: replace the World (obstacles, friction)
 FAULTS_TOPIC = SIM_FAULTS_TOPIC  # scenario -> simulator: ActuatorFaults, SensorFault, EngineStall
@@ -132,6 +135,7 @@ class VehicleSim:
         self.radar_seq = 0           # the radar's alive counter (a freeze repeats it)
         self.software_ready = True   # False: the XGV's control/ready-mode software pause (xgv.py)
         self.mode = safety_mode(self.devices)
+        self.estop_since_s: float | None = None   # e-stop disable since (its engine cut)
 
     # ------------------------------------------------------------------ inputs
 
@@ -205,12 +209,16 @@ class VehicleSim:
         gear = self.gear_cmd
         if not computer_steers:
             steer = self.applied_steer_pct          # the human holds the wheel where it is
+        if mode != "estop-disable":
+            self.estop_since_s = None
         if mode in PAUSE_MODES:
             throttle = 0.0
-            pause_pct = 100.0 * PAUSE_DECEL_MPS2 / self.params.max_brake_decel_mps2
-            brake = PAUSE_HOLD_BRAKE_PCT if stopped else max(brake, pause_pct)
+            brake = PAUSE_HOLD_BRAKE_PCT if stopped else max(brake, self.pause_brake_pct())
         elif mode == "estop-disable":
-            throttle, brake, engine_on = 0.0, 100.0, False
+            if self.estop_since_s is None:
+                self.estop_since_s = now_s
+            throttle, brake = 0.0, 100.0
+            engine_on = self._estop_engine(now_s, stopped)
             gear = plant.gear
         elif not computer_speed:
             # the human drives: pedals, gear and the engine are theirs, whatever the computer
@@ -229,6 +237,31 @@ class VehicleSim:
             self.last_readings.update(readings)   # a freeze repeats the last real reading
         out.extend(readings)
         return out
+
+    def pause_brake_pct(self) -> float:
+        """The pause's brake effort: ``pause_decel_mps2`` (seed 000: "a constant (user set)
+        acceleration"), rolling resistance, drag and grade counted as the vehicle's own
+        speed controller would (the pause is the vehicle's, not open-loop pedal travel)."""
+        p, plant = self.params, self.plant
+        v = abs(plant.speed_mps)
+        sin_grade = math.sin(plant.pitch_rad) * (1.0 if plant.speed_mps >= 0.0 else -1.0)
+        need = p.pause_decel_mps2 - resistance_mps2(p, v, sin_grade)
+        return min(max(100.0 * need / p.max_brake_decel_mps2, 0.0), 100.0)
+
+    def _estop_engine(self, now_s: float, stopped: bool) -> bool:
+        """The engine request in e-stop disable (seed 000: it "will also shut off the engine (if
+        configured to do so)"): ``estop_engine_cut`` never (as it is), always (off), standstill
+        (off once stopped, or once the throttle has stayed open ``ESTOP_THROTTLE_CLOSE_S``:
+        one that does not close would drive against the brake)."""
+        plant, cut = self.plant, self.params.estop_engine_cut
+        running = plant.engine != "off"
+        if cut == "never" or (cut == "standstill" and running and not stopped):
+            since = self.estop_since_s if self.estop_since_s is not None else now_s
+            if (cut == "standstill" and plant.throttle > ESTOP_THROTTLE_OPEN
+                    and now_s - since >= ESTOP_THROTTLE_CLOSE_S - 1e-9):
+                return False
+            return running
+        return False
 
     def _apply_sensor_faults(self, now_s: float, readings: list[tuple[str, Any]]) -> list[tuple[str, Any]]:
         result = []

@@ -132,7 +132,7 @@ from overdrive.vehicle.modes import (
 )
 from overdrive.vehicle.plain_jaus import local_radii_m
 from overdrive.vehicle.plant import World
-from overdrive.vehicle.sim_node import FAULTS_TOPIC, PAUSE_DECEL_MPS2, VehicleSim
+from overdrive.vehicle.sim_node import FAULTS_TOPIC, VehicleSim
 
 Address = tuple[str, int]
 Outgoing = list[tuple[bytes, Address]]
@@ -145,7 +145,6 @@ COMMAND_TIMEOUT_S: Final = 0.5         # wrench mode: no Set Wrench Effort for t
                                        # (a dead client must not leave the throttle open; our choice);
                                        # 50 periods of the client's 100 Hz: no false trip at any
                                        # loss up to 50 % (p^50; docs/xgv.md, "A lossy link")
-LAPSE_DECEL_MPS2: Final = PAUSE_DECEL_MPS2  # a lapsed motion profile stops like a pause (seed 000)
 MPD_HOLD_BRAKE_PCT: Final = 50.0       # MPD at a standstill: seed 000's 50 % holding brake
 SPEED_DEADBAND_MPS: Final = 0.005     # a few steps of the u16 speed field (0.002 m/s, reference §6)
 CURVATURE_DEADBAND_1PM: Final = 1e-4  # two steps of the u16 atan(curvature) field (reference §6)
@@ -855,7 +854,9 @@ class XgvSimulator:
             self.speed_loop.reset(abs(plant.speed_mps), 0.0, a.brake_pct)
         motion = self.current_motion(now_s)
         if motion is None:
-            desired, accel, curvature, rate = 0.0, LAPSE_DECEL_MPS2, self.curvature_ref_1pm, 0.0
+            # a lapsed motion profile stops like a pause (seed 000): the vehicle's pause rate
+            desired, accel = 0.0, p.pause_decel_mps2
+            curvature, rate = self.curvature_ref_1pm, 0.0
         else:
             desired, accel = motion.speed_mps, motion.max_accel_mps2
             curvature, rate = motion.curvature_1pm, motion.curvature_rate_1pms
