@@ -94,9 +94,9 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
                                        # (the speed server must be able to follow it, measured)
     stop_margin_m: float = 0.10        # aim this far before the end of the authorization
     creep_speed_mps: float = 0.3       # terminal phase: approach the stop point at this speed ...
-    creep_zone_m: float = 0.5          # ... over the last this many metres (issue 31 item 9: 1.0
-                                       # crawled 1-3 s per stop; 0.3 stopped the Ranger 0.32 m
-                                       # short of a 30 m end; docs/driving-module.md)
+    creep_zone_m: float = 1.0          # ... over the last this many metres (kept, issue 31 item
+                                       # 9: shorter, a brake found stuck at the stop overruns;
+                                       # docs/driving-module.md)
     stop_tail_s: float = 0.6           # a vehicle commanded to stop travels ~ v x this (measured)
     cut_speed_mps: float = 0.6         # ... commanded only once the vehicle is this slow
     min_move_m: float = 0.1            # a stop point closer than this is not worth moving to
