@@ -37,9 +37,12 @@ def test_seed_sequence_from_parked_to_run(name):
     assert client_request("run", "parked", p.park_gear, g, True, None).state == "paused"
     last = Request("paused", p.park_gear)
     assert client_request("run", "starting", "neutral", g, True, last) == last   # wait
-    assert client_request("run", "paused", "neutral", g, True, last) == Request("idle", g)
-    assert client_request("run", "runwait", "neutral", g, True, Request("idle", g)) == \
-        Request("idle", g)
+    # issue 31 item 9: out of paused, run is asked at once (one runwait: paused -> runwait ->
+    # shifting -> run); the seed's "request idle" first, then run, waited twice
+    assert client_request("run", "paused", "neutral", g, True, last) == Request("run", g)
+    assert client_request("run", "runwait", "neutral", g, True, Request("run", g)) == \
+        Request("run", g)
+    assert client_request("idle", "paused", "neutral", g, True, last) == Request("idle", g)
     assert client_request("run", "idle", "neutral", g, True, None) == Request("idle", g)  # shift
     assert client_request("run", "idle", g, g, True, None) == Request("run", g)
     assert client_request("run", "run", g, g, True, None) == Request("run", g, drive=True)

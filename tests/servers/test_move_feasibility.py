@@ -10,7 +10,12 @@ from hypothesis import strategies as st
 
 from overdrive.dynamics.ellipse import ellipse_for
 from overdrive.messages import MoveCommand
-from overdrive.servers.move_feasibility import Situation, check_command, top_speed_mps
+from overdrive.servers.move_feasibility import (
+    Situation,
+    check_command,
+    direction_change_note,
+    top_speed_mps,
+)
 
 OK = Situation()
 
@@ -147,20 +152,27 @@ def test_infeasible_is_reported_before_not_ready(preset) -> None:
 
 # ----------------------------------------------------------------------------- busy
 
-def test_busy_on_direction_change_while_moving(preset) -> None:
-    fwd = Situation(moving_direction="forward", speed_mps=2.0)
-    verdict = check_command(move("reverse", speed=1.0), fwd, preset)
-    assert verdict is not None and verdict.code == "busy" and "standstill" in verdict.message
-    assert code(move("move"), preset, fwd) == "ok"            # same direction: replaces
-    back = Situation(moving_direction="reverse", speed_mps=-1.0)
-    assert code(move("move"), preset, back) == "busy"
-    assert code(move("reverse", speed=1.0), preset, back) == "ok"
+@pytest.mark.parametrize("speed_mps", [0.11, 2.0, 20.0])
+def test_a_change_of_direction_while_moving_replaces_and_says_it_stops_first(preset,
+                                                                            speed_mps) -> None:
+    """Seed 004: "the new command replaces the current one and gets immediately executed"
+    (issue 31 item 9: it was ``busy``); the reply says the vehicle stops first."""
+    fwd = Situation(moving_direction="forward", speed_mps=speed_mps)
+    back = Situation(moving_direction="reverse", speed_mps=-speed_mps)
+    for cmd, situation, turn in ((move("reverse", speed=1.0), fwd, True),
+                                 (move("move"), back, True), (move("move"), fwd, False),
+                                 (move("reverse", speed=1.0), back, False)):
+        assert code(cmd, preset, situation) == "ok"
+        note = direction_change_note(cmd, situation)
+        assert ("stopping now" in note and f"{speed_mps:.2f} m/s" in note) if turn else note == ""
 
 
-def test_busy_while_shifting_the_other_way(preset) -> None:
+def test_a_change_of_direction_during_another_waits_for_its_shift(preset) -> None:
     shifting = Situation(shifting_to="reverse")
-    assert code(move("move"), preset, shifting) == "busy"
+    assert code(move("move"), preset, shifting) == "ok"
+    assert "shift to reverse under way ends first" in direction_change_note(move("move"), shifting)
     assert code(move("reverse", speed=1.0), preset, shifting) == "ok"
+    assert direction_change_note(move("reverse", speed=1.0), shifting) == ""
 
 
 def test_busy_while_estop_brakes(preset) -> None:

@@ -241,7 +241,7 @@ def reverse(distance_m: float, speed_mps: float = 1.0, k: float = 0.0) -> MoveCo
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_a_reverse_with_nothing_verified_is_clamped_to_the_blind_allowance(preset: str) -> None:
     c = corridor(preset)
-    clamped, note = c.clamp_reverse(reverse(12.0, 2.0), gps())
+    clamped, note = c.clamp_reverse(reverse(12.0, CFG.reverse_max_speed_mps + 1.0), gps())
     assert clamped.distance_m == pytest.approx(CFG.reverse_blind_m)
     assert clamped.maxspeed_mps == CFG.reverse_max_speed_mps
     assert "no rear sensor" in note

@@ -134,14 +134,26 @@ def test_infeasible_on_steep_ground(preset) -> None:
     assert reply.code == "infeasible" and "grade" in reply.message
 
 
-def test_reverse_while_rolling_forward_is_busy(preset) -> None:
+@pytest.mark.parametrize("speed_mps", [0.2, 3.0, 15.0])
+def test_reverse_while_rolling_forward_replaces_the_move_and_stops_first(preset,
+                                                                        speed_mps) -> None:
+    """Seed 004: the new command replaces the current one at once (issue 31 item 9: it was
+    ``busy``). The forward authorization is void (a stop now), the REVERSE's own is published
+    for the shift that follows the standstill, and the phase is ``shifting``."""
     node = MoveServer(preset)
-    run(node, 0.0, 0.5, (cmd(d=50.0),), speed=3.0, odo=0.0)
-    out = node.step(0.5, [*sensors(preset, speed=3.0, odo=1.0), (Topic.MOVE_COMMAND, cmd("reverse", v=1.0, cid=2))])
+    run(node, 0.0, 0.5, (cmd(d=50.0),), speed=speed_mps, odo=0.0)
+    out = node.step(0.5, [*sensors(preset, speed=speed_mps, odo=1.0),
+                          (Topic.MOVE_COMMAND, cmd("reverse", v=1.0, d=3.0, cid=2))])
     reply = last(out, Topic.MOVE_REPLY)
-    assert reply.code == "busy" and "standstill" in reply.message
-    # the forward command keeps running
-    assert last(out, Topic.ADVANCE).distance_m == pytest.approx(49.0)
+    assert reply.accepted and reply.code == "ok"
+    assert "stopping now" in reply.message and f"{speed_mps:.2f} m/s" in reply.message
+    advances = all_of(out, Topic.ADVANCE)
+    assert AdvanceAuthorization(source="move", distance_m=0.0, reverse=False,
+                                issued_s=0.5) in advances            # the MOVE's end is void
+    assert advances[-1].reverse and advances[-1].distance_m > 0.0
+    assert last(out, Topic.DRIVE_MODE) == DriveMode(state="run", direction="reverse")
+    assert last(out, Topic.MOVE_STATUS).phase == "shifting"
+    assert last(out, Topic.MOVE_STATUS).command_id == 2
 
 
 # ----------------------------------------------------------------------------- execution

@@ -98,7 +98,9 @@ class DrivingConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_
                                        # (the speed server must be able to follow it, measured)
     stop_margin_m: float = 0.10        # aim this far before the end of the authorization
     creep_speed_mps: float = 0.3       # terminal phase: approach the stop point at this speed ...
-    creep_zone_m: float = 1.0          # ... over the last this many metres
+    creep_zone_m: float = 1.0          # ... over the last this many metres (kept, issue 31 item
+                                       # 9: shorter, a brake found stuck at the stop overruns;
+                                       # docs/driving-module.md)
     stop_tail_s: float = 0.6           # a vehicle commanded to stop travels ~ v x this (measured)
     cut_speed_mps: float = 0.6         # ... commanded only once the vehicle is this slow
     min_move_m: float = 0.1            # a stop point closer than this is not worth moving to
@@ -413,7 +415,7 @@ REQUEST_TOWARD: dict[str, dict[str, str | None]] = {
     # target state -> the speed server's state -> the state to request. None: keep the last
     # request (the server is on its way: starting an engine, waiting, shifting).
     "run": {"parked": "paused", "reset": None, "starting": None, "startwait": None,
-            "paused": "idle", "runwait": None, "idle": "run", "shifting": None, "run": "run"},
+            "paused": "run", "runwait": None, "idle": "run", "shifting": None, "run": "run"},
     "idle": {"parked": "paused", "reset": None, "starting": None, "startwait": None,
              "paused": "idle", "runwait": None, "idle": "idle", "shifting": None, "run": "idle"},
     "paused": {"parked": "paused", "reset": None, "starting": None, "startwait": None,
@@ -423,7 +425,10 @@ REQUEST_TOWARD: dict[str, dict[str, str | None]] = {
                "paused": "parked", "runwait": "paused", "idle": "paused", "shifting": "paused",
                "run": "paused"},
 }
-"""Seed 001's sequence as a table: parked -> paused -> idle (gear) -> run; back through idle."""
+"""Seed 001's sequence as a table: parked -> paused -> run (one runwait), gear changes in idle;
+back through idle. From paused, run is asked at once: the speed server goes paused -> runwait
+-> shifting -> run, one runwait, where asking for idle first (the seed's "To come out of pause,
+request idle") then run would wait twice (docs/speed-server.md, "Runwaits")."""
 
 
 class Request(msgspec.Struct, frozen=True):
@@ -472,8 +477,8 @@ def client_request(target: str, server_state: str, server_gear: str, want_gear: 
         if server_gear != want_gear:
             return Request("idle", want_gear)
         return Request(state, want_gear)
-    if state == "idle":
-        return Request("idle", want_gear)
+    if state in ("idle", "run"):
+        return Request(state, want_gear)
     return Request(state, server_gear)
 
 
@@ -544,6 +549,8 @@ class DrivingModule:
         self.gear_hints = GearHints(params, gear_speed_fraction=cfg.gear_speed_fraction,
                                     accel_mps2=cfg.accel_mps2)   # seed 001 hints acted on
         self.request: Request | None = None
+        self._sent_key: tuple[str | None, str, str] | None = None   # (server state, target,
+                                                        # gear) when the request was last sent
         self.next_spss_s = -math.inf
         self.last_now_s: float | None = None
         self.first_s: float | None = None
@@ -1068,13 +1075,18 @@ class DrivingModule:
         if math.isfinite(remaining):
             v_auth = self._authorized_speed(remaining - cfg.stop_margin_m, v, ell, grade, roll,
                                             plan_ell)
-        request = self._client(now_s, v)
+        request, prompt = self._client(now_s, v)
         goal = min(v_auth, speed_limit, v_lat) if (request.drive and fresh) else 0.0
         if stuck_k is not None:
             goal = 0.0   # under the lateral limit of the actual curve: braking inside the ellipse
         # the normal path can brake with the whole longitudinal axis once it slows out of a curve
         normal_decel = max(limits.decel_mps2, lon_axis + g_along)
-        urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
+        against_m = self._against_travel_m(v, trusted_mps if fresh else None, reverse)
+        if against_m is None:
+            urgent = self._hard_brake(remaining, v, v_auth, grade, normal_decel, out)
+        else:   # driving the old direction after a change: its authorization binds (stop now)
+            urgent = self._hard_brake(against_m, v, 0.0, -grade,
+                                      max(limits.accel_mps2, lon_axis - g_along), out)
         if not self.hard_brake and self._sliding(now_s, dt_s, v, reverse):
             urgent = self._grip_lost(now_s, v, demand, lat_axis, out) or urgent
         if self.hard_brake:
@@ -1083,7 +1095,7 @@ class DrivingModule:
 
         waiting = server is None and now_s < self.first_s + cfg.spss_period_s - TIME_EPS_S
         urgent = urgent or (pause_starts and self.pause_stop)   # the pause's rate at once
-        if (now_s + TIME_EPS_S >= self.next_spss_s or urgent) and not waiting:
+        if (now_s + TIME_EPS_S >= self.next_spss_s or urgent or prompt) and not waiting:
             overload_rate = cfg.overload_decel_fraction * lon_axis if overload else None
             spss_limits = limits
             if (self.limits.lapsed(now_s) and not self.hard_brake
@@ -1108,7 +1120,7 @@ class DrivingModule:
             out.append((Topic.SET_SPEED, set_speed_message(
                 speed_cmd, rate, request.gear, request.state, self.mode.fault, cfg)))
             self.next_spss_s = max(self.next_spss_s + cfg.spss_period_s, now_s)
-            if urgent or self.next_spss_s <= now_s + TIME_EPS_S:   # one period after this one
+            if urgent or prompt or self.next_spss_s <= now_s + TIME_EPS_S:   # a period after this
                 self.next_spss_s = now_s + cfg.spss_period_s
 
         # steering: rate- and jerk-limited, inside what the longitudinal command leaves
@@ -1151,6 +1163,25 @@ class DrivingModule:
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code=str(int(finding.code)), reason=finding.message)))
         return self.steer_monitor.actual_curvature_1pm if self.steering_stuck else None
+
+    def _against_travel_m(self, v: float, signed_mps: float | None, reverse: bool) -> float | None:
+        """What is left of the authorization of the way the vehicle drives, when that is against
+        the drive mode's direction (issue 31 item 9: a command in the other direction replaced
+        the one in force while the vehicle moved); None otherwise. Driving, not rolling: the
+        speed server is in run in a gear of the way it moves. The old direction's authorization
+        still binds that travel (the move server voids it: 0, a stop now); one no source gave
+        is 0."""
+        server = self.speed_state
+        if (signed_mps is None or v < self.config.hard_brake_min_mps or server is None
+                or server.state != "run"):
+            return None
+        travel_reverse = signed_mps < 0.0
+        if travel_reverse == reverse or self.gears.direction(server.gear) != (
+                -1 if travel_reverse else 1):
+            return None
+        left_m = self.authorizations.remaining_m(travel_reverse,
+                                                 self._progress_m(travel_reverse))
+        return 0.0 if math.isnan(left_m) else left_m
 
     def _hard_brake(self, remaining_m: float, v: float, v_auth: float, grade_rad: float,
                     normal_decel_mps2: float, out: list) -> bool:
@@ -1362,8 +1393,9 @@ class DrivingModule:
             self.planned_gear = want
             self._wish = None
 
-    def _client(self, now_s: float, v: float) -> Request:
-        """The current request to the speed server (kept between SPSS sends)."""
+    def _client(self, now_s: float, v: float) -> tuple[Request, bool]:
+        """The current request to the speed server (kept between SPSS sends), and whether it
+        is to be sent now, before the next SPSS period (the server's state moved on)."""
         server = self.speed_state
         target = self.mode.state
         if self.interrupted and target in ("run", "idle"):
@@ -1374,9 +1406,17 @@ class DrivingModule:
         else:
             request = client_request(target, server.state, server.gear, self.planned_gear,
                                      stopped, self.request)
-        if now_s + TIME_EPS_S >= self.next_spss_s:
+        # the server reached a new state, or the target or gear changed, and that calls for
+        # another request: sent at once, not at the next 100 ms tick (issue 31 item 9: each
+        # step of a sequence waited up to a period). Only on such a change: a standstill that
+        # flickers in the speed noise never sends more often than every period
+        key = (server.state if server is not None else None, target, self.planned_gear)
+        prompt = (server is not None and self.request is not None and key != self._sent_key
+                  and request != self.request)
+        if now_s + TIME_EPS_S >= self.next_spss_s or prompt:
             self.request = request
-        return request
+            self._sent_key = key
+        return request, prompt
 
 
 __all__ = [

@@ -95,7 +95,13 @@ from overdrive.servers.dispatch import TypeDispatch
 from overdrive.servers.move_arrivals import sample_times
 from overdrive.servers.move_clock import FAULT_AFTER_REFUSALS, PlannerClock, PlannerMachine
 from overdrive.servers.move_conditions import ConditionConfig, ConditionMonitor, InputGaps
-from overdrive.servers.move_feasibility import Situation, Verdict, check_command, direction_of
+from overdrive.servers.move_feasibility import (
+    Situation,
+    Verdict,
+    check_command,
+    direction_change_note,
+    direction_of,
+)
 from overdrive.servers.move_radar import RadarConfig, RadarCorridor
 from overdrive.servers.speed_table import ESTOP_CAUSES, FaultCode, estop_cause
 
@@ -623,8 +629,8 @@ class MoveServer:
         acts at once whatever its id, stamp or session; a MOVE / REVERSE that is new goes
         through the checks; a stale one (an id not newer within the session, or an earlier
         session) only restricts the command in force."""
-        verdict = check_command(cmd, self._situation(now_s), self.params,
-                                self.config.gear_speed_fraction)
+        situation = self._situation(now_s)
+        verdict = check_command(cmd, situation, self.params, self.config.gear_speed_fraction)
         command_id = getattr(cmd, "command_id", 0)
         kind = getattr(cmd, "kind", "stop")
         if not isinstance(command_id, int) or isinstance(command_id, bool):
@@ -690,8 +696,10 @@ class MoveServer:
             return
         cmd, clamped = self.corridor.clamp_reverse(cmd, self.gps)   # no rear sensor
         short = self._short_of_a_stop(cmd, odometer0_m, out)
-        out.append((Topic.MOVE_REPLY, MoveReply(command_id=command_id, kind=kind, accepted=True,
-                                                message="; ".join(m for m in (clamped, short) if m))))
+        turn = direction_change_note(cmd, situation)
+        out.append((Topic.MOVE_REPLY, MoveReply(
+            command_id=command_id, kind=kind, accepted=True,
+            message="; ".join(m for m in (turn, clamped, short) if m))))
         self.last_command_id = command_id
         self.planner_clock.placed()
         direction = direction_of(cmd.kind)

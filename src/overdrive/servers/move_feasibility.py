@@ -13,9 +13,16 @@ this order and the first failure is the answer:
    other than drive-by-wire, the computer does not control speed, the speed server's e-stop
    is latched, or the move server's own collision e-stop is latched and the radar still sees
    the obstacle within the command's reach.
-4. ``busy``: the command is fine but conflicts with what is under way: a change of direction
-   while the vehicle is still moving, or while another change of direction is in progress, or
-   while the brakes of an emergency stop are still on.
+4. ``busy``: the command is fine but conflicts with what is under way: the brakes of an
+   emergency stop are still on (wait for the standstill).
+
+A change of direction is never ``busy`` (issue 31 item 9): seed 004, "If a subsequent command
+is received before the current one has completed, the new command replaces the current one and
+gets immediately executed". A command against the way the vehicle moves replaces the one in
+force like any other: the old direction's authorization is void at once (a stop now, as a
+STOP's), and once the vehicle stands the speed server shifts from idle as seed 001 requires.
+One that arrives while a change of direction is under way waits for that shift to end, then
+shifts back (``busy_reason``).
 
 STOP is always accepted (stopping is always allowed), unless it is malformed.
 """
@@ -147,14 +154,25 @@ def not_ready_reason(cmd: MoveCommand, s: Situation) -> str:
 
 
 def busy_reason(cmd: MoveCommand, s: Situation) -> str:
-    direction = direction_of(cmd.kind)
+    """Only an emergency stop still braking. A change of direction while the vehicle moves, or
+    while another one is under way, is accepted (module doc): ``direction_change_note`` says
+    what it costs."""
     if s.estop_braking:
         return "emergency stop in progress: wait for the standstill"
+    return ""
+
+
+def direction_change_note(cmd: MoveCommand, s: Situation) -> str:
+    """What an accepted change of direction does first, for the reply ("" when none): stop
+    from the speed it moves at, or wait for the shift under way to end."""
+    direction = direction_of(cmd.kind)
     if s.moving_direction and s.moving_direction != direction:
-        return (f"vehicle still moving {s.moving_direction} at {abs(s.speed_mps):.2f} m/s: "
-                f"{cmd.kind.upper()} needs a standstill first (send STOP, then retry)")
+        return (f"replaces the {s.moving_direction} command: stopping now from "
+                f"{abs(s.speed_mps):.2f} m/s, then the shift to {direction} through idle and "
+                "runwait (seed 001)")
     if s.shifting_to and s.shifting_to != direction:
-        return f"change of direction to {s.shifting_to} in progress: retry when it is done"
+        return (f"replaces the {s.shifting_to} command: the shift to {s.shifting_to} under way "
+                f"ends first, then the shift to {direction} through idle and runwait (seed 001)")
     return ""
 
 
@@ -175,6 +193,6 @@ def check_command(cmd: object, s: Situation, params: VehicleParams,
     return None
 
 
-__all__ = ["Situation", "Verdict", "busy_reason", "check_command", "direction_of",
-           "infeasible_reason", "invalid_reason", "not_ready_reason", "obstacle_in_reach",
-           "top_speed_mps"]
+__all__ = ["Situation", "Verdict", "busy_reason", "check_command", "direction_change_note",
+           "direction_of", "infeasible_reason", "invalid_reason", "not_ready_reason",
+           "obstacle_in_reach", "top_speed_mps"]

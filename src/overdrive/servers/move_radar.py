@@ -83,8 +83,9 @@ class RadarConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_on
     max_targets: int = 32               # memory bound (nearest kept): ~a cone full of clutter
     hold_gap_m: float = 1.0             # untrusted radar: stop this much more short of the end
                                         # of the verified range than the e-stop margin
-    reverse_max_speed_mps: float = 1.5  # policy: walking pace; the speed the shipped scenarios
-                                        # reverse at. No rear sensor: any surprise at low speed
+    reverse_max_speed_mps: float = 2.5  # issue 31 item 9 (was 1.5, walking pace): a STOP from it
+                                        # stops both presets within reverse_blind_m (0.47-0.68 m
+                                        # on 0 / +-5 %); no rear sensor: any surprise at low speed
     reverse_blind_m: float = 1.0        # policy: unverified ground a REVERSE may back into (less
                                         # than a rear parking aid's ~1.5 m zone would have seen)
     trail_spacing_m: float = 0.25       # rear-bumper track resolution
