@@ -2,10 +2,10 @@
 after it never drives (issue 31: each source is released only by its own authorization issued
 after the vehicle came back). An unstamped one cannot show when it was sent: one sent 50 ms
 before the release and delayed 0.2 s drove the vehicle on 29.8 m when the module took anything
-arriving a full SPSS period after the release as new. It counts only after its source's 0
-arrived after the release (the source knows the vehicle stopped; docs/driving-module.md). One
-sent after the release, after a 0, still drives (availability); without the 0 it is held and
-its source told so. Judged from the plant's own x/y and the run's judge."""
+arriving a full SPSS period after the release as new (and 29.65 m when a 0 arrived first, both
+sent during the pause). Nothing unstamped frees a source: after the release only its stamped
+authorization does (availability), and the source is told so (never a silent hold). Judged from
+the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
 
@@ -45,11 +45,14 @@ class UnstampedSource:
 
 
 def paused(preset: str, sends: list[tuple[float, float]], delay_s: float | None,
-           duration_s: float = 30.0):
-    """6 m/s, a SafeStop pause from 5 s to ``RELEASE_S``; the lidar's unstamped ``sends``;
-    ``delay_s``: the advance channel delays what is sent in [11.9, 12.0) s by that much."""
+           duration_s: float = 30.0, stamped: list[tuple[float, float]] = ()):
+    """6 m/s, a SafeStop pause from 5 s to ``RELEASE_S``; the lidar's unstamped ``sends`` (and
+    its ``stamped`` ones, played by the scenario); ``delay_s``: the advance channel delays what
+    is sent in [11.9, 12.0) s by that much."""
     events = [{"at_s": 1, "max_speed": {"source": "map", "speed_mps": 6}},
-              {"at_s": 5, "safestop": "pause"}, {"at_s": RELEASE_S, "safestop": "run"}]
+              {"at_s": 5, "safestop": "pause"}, {"at_s": RELEASE_S, "safestop": "run"},
+              *({"at_s": at_s, "advance": {"source": "lidar", "distance_m": d}}
+                for at_s, d in stamped)]
     if delay_s is not None:
         events.append({"at_s": 11.9, "delay": {"channel": "advance", "for_s": 0.1,
                                                 "delay_s": delay_s}})
@@ -83,21 +86,24 @@ def test_an_unstamped_authorization_sent_before_the_release_never_drives(preset:
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-def test_an_unstamped_authorization_after_a_zero_after_the_release_drives(preset: str) -> None:
-    """Availability: 0 then 10 m sent unstamped 2 s after the release drive 9.79 m (both
-    presets; through two runwaits)."""
-    result = paused(preset, [(14.0, 0.0), (14.05, 10.0)], None, duration_s=40.0)
-    assert 9.0 <= travel_after_m(result, 14.0) <= 10.0
-    assert result.summary["violations"] == []
+def test_after_the_release_only_a_stamped_authorization_frees_the_source(preset: str) -> None:
+    """Availability: 0 then 10 m unstamped 2 s after the release are held (0 m); the same
+    source's stamped 10 m at 16 s drives 9.79 m (both presets, through one runwait)."""
+    held = paused(preset, [(14.0, 0.0), (14.05, 10.0)], None, duration_s=40.0)
+    assert travel_after_m(held, 14.0) <= STILL_M
+    freed = paused(preset, [(14.0, 0.0), (14.05, 10.0)], None, duration_s=40.0,
+                   stamped=[(16.0, 10.0)])
+    assert 9.0 <= travel_after_m(freed, 16.0) <= 10.0
+    assert freed.summary["violations"] == []
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-def test_an_unstamped_authorization_without_a_zero_is_held_and_its_source_told(
+def test_an_unstamped_authorization_after_the_release_is_held_and_its_source_told(
         preset: str) -> None:
-    """10 m sent unstamped 2 s after the release, with no 0 before it: held (0 m), and the
-    source is told to stamp it or send 0 first (never a silent hold)."""
+    """10 m sent unstamped 2 s after the release: held (0 m), and the source is told to stamp
+    it (never a silent hold)."""
     result = paused(preset, [(14.0, 10.0)], None, duration_s=20.0)
     assert travel_after_m(result, 14.0) <= STILL_M
     held = [e for e in result.summary["events"] if e.get("kind") == "rejected"
-            and "held at 0" in e.get("reason", "") and "after a 0" in e.get("reason", "")]
+            and "held at 0" in e.get("reason", "") and "stamped" in e.get("reason", "")]
     assert held, result.summary["events"]

@@ -1,9 +1,10 @@
 """An unstamped source's 0 sent during a pause is not proof that it knows the vehicle stopped
-(issue 31; docs/driving-module.md, "Interruptions": an unstamped authorization frees its source
-only after that source's 0 arrived after the release). The module keys the rule on when the 0
-*arrived*, not when it was sent: a source that sends 0 and then a positive authorization during
-the pause, both delayed past the release by the advance channel, is freed by its own stale 0
-and the stale positive drives. Judged from the plant's own x/y and the run's judge."""
+(issue 31; docs/driving-module.md, "Interruptions"). When an unstamped authorization freed its
+source after that source's 0 arrived after the release, a source that sent 0 and then a positive
+authorization during the pause, both delayed past the release by the advance channel, was freed
+by its own stale 0 and the stale positive drove 18.6-29.7 m: nothing unstamped can show when it
+was sent. Now only a stamped authorization issued after the release frees a source. Judged from
+the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
 
@@ -46,15 +47,11 @@ def travel_after_m(result, t0_s: float) -> float:
                for a, b in itertools.pairwise(rows))
 
 
-@pytest.mark.xfail(strict=True, reason="the unstamped rule counts a 0 by its arrival after the "
-                                       "release, not by when it was sent: a 0 and a positive "
-                                       "both sent during the pause and delayed past the "
-                                       "release free the source and drive 18.6-29.7 m")
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("delay_s", [0.2, 0.5, 1.0])
 def test_a_zero_and_an_authorization_sent_during_a_pause_and_delayed_never_drive(
         preset: str, delay_s: float) -> None:
-    """Measured 2026-11-26 (/tmp script, this file's scenario): 0 at 11.90 s then 40 m at
+    """Measured 2026-11-26 before the fix (this file's scenario): 0 at 11.90 s then 40 m at
     11.95 s, both delayed past the release at 12.0 s: `resumed` at 12.0 + delay_s + 0.0x s,
     then drove 29.65 / 27.88 / 24.92 m (escape-hybrid, delay 0.2 / 0.5 / 1.0 s) and 23.30 /
     21.50 / 18.58 m (ranger-6x6); the judge reports `unintended_motion` each time."""

@@ -612,7 +612,6 @@ class DrivingModule:
         self._latched: set[str] = set()   # sources held until their own authorization after
         self._release_s: float | None = None   # ... the vehicle came back (or the stop, when
                                                  # the vehicle never left drive-by-wire)
-        self._zero_after_release: set[str] = set()   # sources whose 0 arrived after it
         self._vehicle_key: tuple[str, bool] | None = None   # (safety mode, computer speed) seen
         self._status_cause = ""   # an interruption seen in this step's statuses
         self.pause_stop = False   # a pause-like interruption's stop under way (_pause_rate)
@@ -727,10 +726,8 @@ class DrivingModule:
                     distance_m = 0.0   # lost once: held until it says it knows (it sends 0)
                 else:
                     del self.traffic_lost[msg.source]
-            if distance_m <= 0.0 and self._release_s is not None and self._vehicle_ok:
-                self._zero_after_release.add(msg.source)   # it knows: see _after_release
             if distance_m > 0.0 and (self.interrupted or msg.source in self._latched):
-                if self._after_release(msg.source, msg.issued_s, now_s):
+                if self._after_release(msg.issued_s):
                     self._resume(msg.source, out)   # its own authorization after the release
                 elif self.pause_stop:
                     # the pause's stop: a closer end applies, a further one never (one that
@@ -823,7 +820,6 @@ class DrivingModule:
         held = sorted({source for source, _ in self.authorizations.by_source})
         self._latched.update(held)
         self._release_s = now_s if self._vehicle_ok is not False else None
-        self._zero_after_release.clear()
         pause = _pause_stop_cause(cause)
         self._pause_cause = f"interrupted ({cause})"
         if pause:
@@ -876,19 +872,16 @@ class DrivingModule:
             if source in self.config.streaming_sources:
                 self.traffic_lost[source] = why
 
-    def _after_release(self, source: str, issued_s: float | None, now_s: float) -> bool:
+    def _after_release(self, issued_s: float | None) -> bool:
         """True for an authorization sent after the interruption ended: issued after the vehicle
-        came back (after the stop, when it never left drive-by-wire). An unstamped one cannot
-        show when it was sent (one sent during the pause and delayed past the release drove
-        29.8 m): it counts only once its source sent 0 that arrived after the release (it knows
-        the vehicle stopped), and a full SPSS period after the release."""
+        came back (after the stop, when it never left drive-by-wire). An unstamped one never
+        is: it cannot show when it was sent, and neither can anything else its source sends (one
+        sent during the pause and delayed past the release drove 29.8 m; with its own 0 sent
+        before it and delayed as long, 29.65 m). Its source is told to stamp it."""
         release_s = self._release_s
-        if release_s is None or not self._vehicle_ok:
+        if release_s is None or not self._vehicle_ok or issued_s is None:
             return False
-        if issued_s is not None:
-            return issued_s > release_s
-        return source in self._zero_after_release \
-            and now_s >= release_s + self.config.spss_period_s - TIME_EPS_S
+        return issued_s > release_s
 
     def _held(self, source: str, reverse: bool, out: list) -> float:
         """An authorization that arrives during an interruption, or one sent before its end:
@@ -898,7 +891,8 @@ class DrivingModule:
             self._held_noticed.add((source, reverse))
             self._reject("advance", f"advance from {source!r} held at 0: interrupted "
                                     f"({self.interrupted}); send it again once the vehicle "
-                                    f"is back (stamped with issued_s, or after a 0)", out)
+                                    f"is back, stamped with issued_s (an unstamped one "
+                                    f"cannot show it was sent after the release)", out)
         return 0.0
 
     def _resume(self, source: str, out: list) -> None:
