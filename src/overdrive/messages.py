@@ -210,6 +210,9 @@ class DrivingStatus(Message, frozen=True):
                                    # "grip_lost" (a curve that no longer fits the ellipse) or
                                    # "interrupted" (the vehicle left drive-by-wire, the speed
                                    # server stopped on its own)
+    last_unasked_stop_s: float = -1.0   # when the newest one was made (this module's clock; -1:
+                                        # none): the move server ignores an "interrupted" it saw
+                                        # end itself (a late report must not end a new MOVE)
 
 
 # --------------------------------------------------------------------------- speed server (seed 001)

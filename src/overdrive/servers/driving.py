@@ -599,6 +599,7 @@ class DrivingModule:
         self.traffic_lost: dict[str, str] = {}    # streaming source -> why it is held at 0
         self.unasked_stops = 0  # stops made on its own since the start (DrivingStatus)
         self.last_unasked_stop = ""   # the newest one's cause (DrivingStatus.last_unasked_stop)
+        self.last_unasked_stop_s = -1.0   # ... and when (DrivingStatus.last_unasked_stop_s)
         self._drift_rad = 0.0   # heading lost to sliding in a curve (issue 30, _sliding) ...
         self._drift_m = 0.0     # ... and the distance outside the curve it made
         # interruptions (issue 31, _watch_interruptions): latched until a new authorization
@@ -776,6 +777,7 @@ class DrivingModule:
             self.traffic_lost[source] = why
             self.unasked_stops += 1
             self.last_unasked_stop = "command_silence"
+            self.last_unasked_stop_s = self.last_now_s or 0.0   # this step's time
             out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE,
                                              code="command_silence", reason=why)))
 
@@ -835,6 +837,7 @@ class DrivingModule:
         # interruption ends its command and streams 0, so its next command drives
         self.unasked_stops += 1
         self.last_unasked_stop = "interrupted"
+        self.last_unasked_stop_s = now_s
         if not already:
             how = (f"kept, never extended, while the vehicle stops at its pause rate "
                    f"({self.params.pause_decel_mps2:g} m/s^2, harder only as they need), then "
@@ -1135,7 +1138,7 @@ class DrivingModule:
             curvature_1pm=self.curvature_1pm, accel_limit_mps2=limits.accel_mps2,
             decel_limit_mps2=limits.decel_mps2, rejected=self.rejected,
             unasked_stops=self.unasked_stops, last_unasked_stop=self.last_unasked_stop,
-            started_s=self.first_s if self.first_s is not None else now_s)))
+            last_unasked_stop_s=self.last_unasked_stop_s, started_s=self.first_s if self.first_s is not None else now_s)))
         return out
 
     # ------------------------------------------------------------------ helpers
@@ -1251,6 +1254,7 @@ class DrivingModule:
         self.hard_brake = True
         self.unasked_stops += 1
         self.last_unasked_stop = "grip_lost"
+        self.last_unasked_stop_s = now_s
         out.append((Topic.NOTICE, Notice(kind="hard_brake", source=SOURCE, code="grip_lost",
                                          reason=why)))
         out.append((Topic.NOTICE, Notice(kind="fault", source=SOURCE, code="grip_lost",
