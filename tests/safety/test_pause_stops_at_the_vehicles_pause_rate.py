@@ -120,14 +120,14 @@ def tyres_mps2(preset: str) -> float:
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-@pytest.mark.parametrize("factor", [0.999, 1.0])
-def test_a_pause_rate_up_to_what_the_tyres_hold_is_taken(preset: str, factor: float) -> None:
-    rate = tyres_mps2(preset) * factor
+@pytest.mark.parametrize("factor", [0.999, 1.0, "floor"])
+def test_a_pause_rate_up_to_what_the_tyres_hold_is_taken(preset: str, factor) -> None:
+    rate = 1.0 if factor == "floor" else tyres_mps2(preset) * factor
     assert with_overrides(PRESETS[preset], {"pause_decel_mps2": rate}).pause_decel_mps2 == rate
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, -2.5, 0.0, 0.0999, "2.5",
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, -2.5, 0.0, 0.1, 0.999, "2.5",
                                    None, True, "tyres+"])
 def test_a_pause_rate_not_finite_not_above_0_or_beyond_the_tyres_is_refused(preset: str,
                                                                           value) -> None:

@@ -221,8 +221,9 @@ PLAUSIBLE_RANGES: dict[str, tuple[float, float, str]] = {
     "park_brake_apply_s": (0.01, 10.0, "electric parking brakes ~0.5-1 s, a lever actuator a "
                                        "few seconds"),
     "park_brake_max_apply_mps": (0.0, 70.0, "0: only at rest; up to the fastest speed driven"),
-    "pause_decel_mps2": (0.1, 15.0, "above 0: 0.1 m/s^2 stops 8 m/s in 80 s; at most the "
-                                    "brakes' full deceleration (checked against this vehicle's)"),
+    "pause_decel_mps2": (1.0, 15.0, "at least 1 m/s^2 (8 m/s stops in 32 m; the XGV simulator's "
+                                    "link-loss stop uses it too: at 0.1 it took 320 m); at most "
+                                    "the brakes' full deceleration (checked against this vehicle's)"),
 }
 """Physically plausible range of every number a scenario may override (docs/scenarios.md)."""
 
