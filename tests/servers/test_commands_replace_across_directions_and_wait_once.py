@@ -127,19 +127,25 @@ def test_out_of_a_pause_a_new_move_waits_one_runwait(preset: str) -> None:
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-@pytest.mark.parametrize("grade", [0.0, 5.0, -5.0])
-def test_a_stop_from_the_reverse_speed_ends_within_the_blind_allowance(preset: str,
-                                                                      grade: float) -> None:
-    """Why 2.5 m/s: a STOP sent while backing at it stops the vehicle within
-    ``reverse_blind_m`` (no rear sensor: the unverified ground a REVERSE may enter)."""
+@pytest.mark.parametrize(("friction", "grade"), [
+    (0.8, 0.0), (0.8, 5.0), (0.8, -5.0),   # dry: the 2.5 m/s itself
+    (0.3, 5.0), (0.3, 0.0), (0.2, 0.0),    # low grip: a fixed 2.5 m/s stopped in 0.96-1.28 m
+])
+def test_a_stop_from_the_reverse_speed_ends_within_the_blind_allowance(
+        preset: str, friction: float, grade: float) -> None:
+    """A STOP sent while backing at the reverse speed stops the vehicle within
+    ``reverse_blind_m`` (no rear sensor: the unverified ground a REVERSE may enter), on dry
+    ground at 2.5 m/s and on low grip at the speed the braking then allows
+    (``MoveServer._reverse_stop_cap_mps``)."""
     cfg = RadarConfig()
+    world = {"grade_percent": grade, "friction": friction}
     base = [leg(0.5, "move", 20.0, 4.0), leg(12.0, "reverse", 15.0, cfg.reverse_max_speed_mps)]
-    probe = run_events(base, vehicle=preset, duration_s=30.0, world={"grade_percent": grade})
+    probe = run_events(base, vehicle=preset, duration_s=30.0, world=world)
     top = min(v for _, v in column(probe.trace, "speed_mps"))
-    assert -cfg.reverse_max_speed_mps - 0.3 <= top < -0.9 * cfg.reverse_max_speed_mps
+    assert -cfg.reverse_max_speed_mps - 0.3 <= top < -1.0    # still a useful reverse
     at_s = next(t for t, v in column(probe.trace, "speed_mps") if v < 0.95 * top)
     result = run_events([*base, {"at_s": round(at_s, 2), "stop": {}}], vehicle=preset,
-                        duration_s=30.0, world={"grade_percent": grade})
+                        duration_s=30.0, world=world)
     x = column(result.trace, "x_m")
     x_stop = next(xm for t, xm in x if t >= round(at_s, 2))
     assert result.summary["violations"] == []

@@ -1131,7 +1131,20 @@ class MoveServer:
         self._reduction_notices(active is not None and self.phase not in ("stopping",
                                                                            "estopped"), out)
         limit = min(maxspeed, self.monitor.cap_mps())
+        if active is not None and active.direction == "reverse":
+            limit = min(limit, self._reverse_stop_cap_mps())
         self.limit_mps = max(limit, 0.0) if active is not None else 0.0
+
+    def _reverse_stop_cap_mps(self) -> float:
+        """No rear sensor (seed 004): a REVERSE no faster than a STOP (``estop_reaction_s``, the
+        braking ellipse on the friction believed now, the slope behind) ends within the blind
+        allowance. The fixed 2.5 m/s stopped in 0.47-0.68 m on dry ground but in 0.96-1.28 m at
+        friction 0.2-0.3 (over the 1 m allowance): the cap follows the grip."""
+        grade = -self.gps.pitch_rad if self.gps is not None else 0.0   # reverse travel
+        roll = self.gps.roll_rad if self.gps is not None else 0.0
+        braking = self._brakings.get(self._brake_ell, 0.0, grade, roll)
+        return braking.max_safe_speed_mps(self.config.radar.reverse_blind_m,
+                                          self.config.estop_reaction_s)
 
     def _reduction_notices(self, commanded: bool, out: list) -> None:
         """A ``speed_reduction`` notice for every reduction that slows a command and was not
