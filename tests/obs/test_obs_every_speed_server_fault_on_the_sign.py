@@ -5,7 +5,8 @@ why the vehicle stopped"; seed 001's LED sign). The speed server's motion-plausi
 source ``speed``; they never reached ``SpeedServer.fault``, so the sign stayed blank while the
 server reported the sensor untrusted. Now each shows from its notice while in force (at least
 ``SENSOR_FAULT_SHOWN_MIN_S``), the newest fault winning. Judged from the run's own bus: each ``fault`` Notice of
-source ``speed`` against the ``Display`` messages that follow it (a tap on every message)."""
+source ``speed`` against the ``Display`` messages that follow it (a tap on every message): its
+code shown, or listed in ``also_in_force`` when a newer fault shows (one sign, one code)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import pytest
 from overdrive.messages import Display, Notice, Topic
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario, read_scenario_data
+from overdrive.servers.speed import SENSOR_FAULT_SHOWN_MIN_S
 from tests.conftest import PRESET_NAMES
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios" / "faults"
@@ -76,3 +78,34 @@ def test_a_stop_fault_of_the_speed_server_shows_on_the_sign(preset: str) -> None
     for raised_s, code in tap.faults:
         assert any(code in shown and raised_s - 1e-9 <= at_s <= raised_s + SHOWN_WITHIN_S
                    for at_s, shown in tap.shown), (raised_s, code)
+
+
+def on_sign_s(tap: SignTap, code: int) -> list[tuple[float, bool]]:
+    """Each Display's time and whether ``code`` is on it (shown or listed as in force)."""
+    return [(at_s, code in shown) for at_s, shown in tap.shown]
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_one_off_gps_step_shows_for_its_hold_then_leaves(preset: str) -> None:
+    """A position step (1105) is an event, not a state: on the sign from its notice for
+    ``SENSOR_FAULT_SHOWN_MIN_S``, gone within one change interval after it."""
+    tap = run_with_tap("sensor-error-gps-step.yaml", preset)
+    raised = [at_s for at_s, code in tap.faults if code == 1105]
+    assert raised
+    end_s = raised[-1] + SENSOR_FAULT_SHOWN_MIN_S
+    marks = on_sign_s(tap, 1105)
+    assert all(on for at_s, on in marks if raised[0] - 1e-9 <= at_s < end_s - 1e-9)
+    gone = [at_s for at_s, on in marks if at_s >= end_s - 1e-9 and not on]
+    assert gone and gone[0] <= end_s + SHOWN_WITHIN_S, gone[:1]
+    assert all(not on for at_s, on in marks if at_s >= gone[0])
+
+
+@pytest.mark.parametrize("preset", PRESET_NAMES)
+def test_a_frozen_gps_stays_on_the_sign_while_it_repeats(preset: str) -> None:
+    """A frozen GPS/INS (1101) stays untrusted while it repeats its reading, to the end of
+    this run: on the sign (shown or listed in force) on every Display from its notice."""
+    tap = run_with_tap("sensor-freeze-gps.yaml", preset)
+    raised_s = min(at_s for at_s, code in tap.faults if code == 1101)
+    marks = on_sign_s(tap, 1101)
+    assert marks[-1][0] > raised_s + SENSOR_FAULT_SHOWN_MIN_S   # the run lasts past the hold
+    assert all(on for at_s, on in marks if at_s >= raised_s - 1e-9)

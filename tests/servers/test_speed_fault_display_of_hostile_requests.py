@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import pytest
 
-from overdrive.messages import Topic
+from overdrive.messages import DISPLAY_TEXT_MAX_CHARS, Topic, sign_text
 from overdrive.observe.display import DisplayLines
 from overdrive.servers.speed_table import FAULT_MESSAGES
 from tests.servers.test_speed_fault_display import DisplayRig
@@ -44,6 +44,8 @@ def test_control_characters_of_a_client_reach_the_console_escaped(preset, field)
     DisplayLines(lines.append).observe(Topic.DISPLAY, rig.shown())
     assert rig.shown().code != 0 and len(lines) == 1
     assert not any(c in lines[0] for c in "\x1b\n\r\udcff")
+    rig.shown().text.encode("utf-8")   # strict: what run.mcap's writer does with it
+    lines[0].encode("utf-8")
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)
@@ -78,3 +80,20 @@ def test_a_client_changing_its_fault_every_period_does_not_flood_the_sign(preset
         rig.tick(spss(f"bogus{i}", 4.0, 2.0, gear=gear) if kind == "bad_state"
                  else spss("run", 4.0, 2.0, gear=gear, fault=1 + i % 2))
     assert len(rig.displays) - before <= 10
+
+
+@pytest.mark.parametrize("extra", [-2, -1, 0, 1, 2, 1000])
+@pytest.mark.parametrize("filler", ["A", "\x00", "\udcff", "\u00e9"])
+def test_sign_text_is_printable_and_cut_at_its_limit(extra, filler) -> None:
+    """Swept around ``DISPLAY_TEXT_MAX_CHARS``: a text up to it is kept (each unprintable
+    character one "?"), a longer one cut to exactly the limit, ending in an ellipsis; the
+    result always encodes as strict UTF-8 and holds no unprintable character."""
+    text = filler * (DISPLAY_TEXT_MAX_CHARS + extra)
+    shown = sign_text(text)
+    assert shown.isprintable()
+    shown.encode("utf-8")
+    if len(text) <= DISPLAY_TEXT_MAX_CHARS:
+        assert len(shown) == len(text) and not shown.endswith("\u2026")
+        assert shown == (text if filler.isprintable() else "?" * len(text))
+    else:
+        assert len(shown) == DISPLAY_TEXT_MAX_CHARS and shown.endswith("\u2026")
