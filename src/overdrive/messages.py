@@ -267,11 +267,32 @@ class Display(Message, frozen=True):
 
     text: str
     code: int = 0                  # the fault code shown (1..999 a client's, 1001+ the server's)
+    also_in_force: tuple[int, ...] = ()   # the other faults in force, newest first (text ends
+                                          # with them: "(also 1101, 1102)")
 
 
 DISPLAY_REFRESH_S = 1.0
 """A repeated ``Display`` is re-sent this often: a human reads the sign, so a second is soon
 enough for a late joiner, and 1 message/s instead of the 100/s of a per-period output."""
+
+DISPLAY_CHANGE_MIN_S = 0.1
+"""A changed ``Display`` is sent at most once per this interval (the newest text then): seed
+001's SPSS period (10 Hz), the rate a client can change its fault by design; a client changing
+its fault every 10 ms period gets 10 messages a second, not 100."""
+
+DISPLAY_TEXT_MAX_CHARS = 120
+"""Longest sign text: an LED sign shows tens of characters, and the longest fault template is
+80 (``speed_table.FAULT_MESSAGES``, 2026-11-26); a longer text is cut and ends in an ellipsis
+(the full text stays in the fault's ``Notice``)."""
+
+
+def sign_text(text: str, max_chars: int = DISPLAY_TEXT_MAX_CHARS) -> str:
+    """``text`` as a sign shows it: every character that is not printable (control
+    characters, lone surrogates, line breaks) replaced by "?" so it always encodes as UTF-8
+    and prints on one line, then cut to ``max_chars`` (at least 1) with an ellipsis."""
+    if len(text) > max_chars:
+        text = text[:max(max_chars, 1) - 1] + "\u2026"
+    return "".join(c if c.isprintable() else "?" for c in text)
 
 
 # --------------------------------------------------------------------------- actuators

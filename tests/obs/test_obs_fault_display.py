@@ -39,10 +39,11 @@ def test_run_mcap_records_the_display_from_the_fault_to_its_clearing(preset, tmp
     path = record_run(client_fault_run(preset), tmp_path)
     displays = recorded(path, Topic.DISPLAY)
     states = recorded(path, Topic.SPEED_STATE)
-    assert displays and displays[0][1] == {"text": "", "code": 0}
+    assert displays and displays[0][1] == {"text": "", "code": 0, "also_in_force": []}
     shown = [(t, d) for t, d in displays if d["text"]]
     assert shown[0] == (pytest.approx(FAULT_AT_S, abs=0.02),
-                        {"text": fault_message(CODE), "code": CODE})
+                        {"text": fault_message(CODE), "code": CODE,
+                         "also_in_force": []})
     # from the last status carrying the fault, the very next display is blank
     last_fault_s = max(t for t, s in states if s.get("fault", 0) == CODE)
     blank = next(t for t, d in displays if t > last_fault_s and not d["text"])

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from overdrive.messages import Display, Topic
+from overdrive.messages import Display, Topic, sign_text
 
 
 class DisplayLines:
@@ -29,7 +29,8 @@ class DisplayLines:
         first, self.text = self.text is None, msg.text
         if first and not msg.text:
             return
-        shown = f"fault {msg.code}: {msg.text}" if msg.text else "(clear)"
+        # bounded and printable whoever sent it (a replayed or foreign Display): one short line
+        shown = f"fault {msg.code}: {sign_text(msg.text)}" if msg.text else "(clear)"
         self.write(f"display {self.now_s:8.2f} s  {shown}")
         self.lines += 1
 

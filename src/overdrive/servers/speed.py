@@ -8,9 +8,11 @@ transition, and publishes:
 - ``speed/state``: one ``SpeedState`` reply per SPSS received, or one status when none came;
 - ``vehicle/pedals`` and ``vehicle/powertrain`` every period (``source="speed"``);
 - ``events``: a ``Notice`` per fault (``kind="fault"``) and per emergency stop (``kind="estop"``);
-- ``display``: the current fault's text for the LED sign (``Display``; "" when none), on every
-  change and every ``DISPLAY_REFRESH_S`` (seed 001: "Sending a nonzero fault code will result
-  in a message being displayed in the LED sign").
+- ``display``: the newest fault in force for the LED sign (``Display``; "" when none): the
+  server's current fault or a motion-sensing fault (1101-1119) while its source is distrusted;
+  on a change (at most one per ``DISPLAY_CHANGE_MIN_S``, the newest text) and every
+  ``DISPLAY_REFRESH_S``; the text made printable and bounded (``messages.sign_text``) (seed 001:
+  "Sending a nonzero fault code will result in a message being displayed in the LED sign").
 
 Decisions the seed leaves open (documented in ``docs/speed-server.md``):
 
@@ -71,7 +73,9 @@ from overdrive.dynamics.speed_control import (
 from overdrive.dynamics.validation import finite, valid_sigma
 from overdrive.dynamics.vehicle_params import G_MPS2, Gear, GearTable, VehicleParams
 from overdrive.messages import (
+    DISPLAY_CHANGE_MIN_S,
     DISPLAY_REFRESH_S,
+    DISPLAY_TEXT_MAX_CHARS,
     Display,
     GpsIns,
     Imu,
@@ -83,10 +87,15 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    sign_text,
     tyres_at_limit,
 )
 from overdrive.safety.actuators import BRAKE_LOST, CUTS_ENGINE, PedalMonitor
-from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
+from overdrive.safety.plausibility import (
+    MotionPlausibility,
+    PlausibilityFault,
+    plausibility_config,
+)
 from overdrive.safety.watchdog import Watchdog
 from overdrive.servers.direction_hold import DirectionHold, DirectionHoldConfig, HoldCommand
 from overdrive.servers.dispatch import TypeDispatch
@@ -115,6 +124,17 @@ PROBE_TARGET_FRACTION = 0.2
 """The brake probe starts only at launch, below this share of the target: before the ramp's
 20-80 % stretch whose acceleration the server guarantees (issue 3 acceptance, within 15 %), and
 never at cruise, where the speed must hold within 0.2 m/s (issue 4 acceptance)."""
+SENSOR_FAULT_SHOWN_MIN_S = 3.0
+"""A motion-sensing fault (1101-1119) stays on the sign at least this long after its notice,
+and then for as long as it is in force (``_sensor_fault_in_force``): three sign refreshes, so a
+one-off GPS step (1105, 1106) is readable by a person who looks up, not a flash. A decision
+(docs/speed-server.md, "The fault display"), not a measured figure."""
+SENSOR_FAULT_TRACKS = {PlausibilityFault.GPS_FROZEN: "gps_ins",
+                       PlausibilityFault.GPS_ODOMETER_JUMP: "gps_ins",
+                       PlausibilityFault.GPS_NO_SOLUTION: "gps_ins",
+                       PlausibilityFault.WHEEL_SPEED_FROZEN: "wheel_speed",
+                       PlausibilityFault.IMU_FROZEN: "imu"}
+"""The source whose distrust each motion-sensing fault reports: in force while it is untrusted."""
 CLOCK_SKEW_MAX_S = 0.001
 """An SPSS send stamp may lead ``now_s`` by this much (float rounding of one shared clock,
 docs/multiprocess.md); further ahead, its clock is not ours and it is timed from receipt."""
@@ -225,6 +245,9 @@ class SpeedServer:
         self.last_input_rejection = ""
         self.display: Display | None = None   # the last Display sent, and when
         self.display_sent_s = -math.inf
+        self.display_changed_s = -math.inf   # the last change sent (DISPLAY_CHANGE_MIN_S)
+        self.fault_shown: tuple[int, str, float] = (0, "", -math.inf)   # fault, message, onset
+        self.sensor_faults: dict[int, tuple[float, str]] = {}   # on the sign: code -> (raised, reason)
         # hints
         self.hints = HintMonitor(params, cfg.hints, cfg.gear_cap_fraction)
         self.hint = "none"
@@ -264,8 +287,9 @@ class SpeedServer:
             self.first_step_s = now_s
         requests = self._read_inputs(now_s, inbox, out)
         gear = self.gears.get(self.gear_cmd)
-        out.extend((Topic.NOTICE, n) for n in self.motion.step(
-            now_s, gear.direction if gear is not None else 0))
+        motion_notices = self.motion.step(now_s, gear.direction if gear is not None else 0)
+        self._note_sensor_faults(now_s, motion_notices)
+        out.extend((Topic.NOTICE, n) for n in motion_notices)
         self._update_measurements(now_s, dt_s)
         self._monitor_actuators(now_s, out)
         if self.brake_lost and not self.engine_cut and self.stopped:
@@ -301,11 +325,59 @@ class SpeedServer:
         self._display(now_s, out)
         return out
 
+    def _note_sensor_faults(self, now_s: float, notices: Sequence[Notice]) -> None:
+        """Put each motion-sensing fault raised this period on the sign (a repeat re-dates it)."""
+        for notice in notices:
+            if notice.kind == "fault" and notice.code.isdigit():
+                self.sensor_faults.pop(int(notice.code), None)   # kept in raising order
+                self.sensor_faults[int(notice.code)] = (now_s, notice.reason)
+
+    def _sensor_fault_in_force(self, code: int) -> bool:
+        """Whether the condition a motion-sensing fault reported still holds: its source
+        untrusted, the speeds still disagreeing, no trusted speed; a step (1105, 1106) is an
+        event and holds only ``SENSOR_FAULT_SHOWN_MIN_S``."""
+        if code in SENSOR_FAULT_TRACKS:
+            return not self.motion.trusted(SENSOR_FAULT_TRACKS[PlausibilityFault(code)])
+        if code == PlausibilityFault.SPEED_DISAGREE:
+            return self.motion.disagree_fault
+        return code == PlausibilityFault.NO_TRUSTED_SPEED and self.motion.no_speed
+
+    def _sign(self, now_s: float) -> Display:
+        """What the sign should show now: the newest fault in force, the server's current fault
+        (the one the replies carry, dated by its onset) or a motion-sensing fault, the others
+        in force listed after it (``also_in_force``); blank when none. Faults raised in one
+        period: the last raised first (the server's own after the sensors')."""
+        if (self.fault, self.fault_message) != self.fault_shown[:2]:
+            self.fault_shown = (self.fault, self.fault_message, now_s)
+        for code, (raised_s, _) in list(self.sensor_faults.items()):
+            if (now_s - raised_s >= SENSOR_FAULT_SHOWN_MIN_S - TIME_EPS_S
+                    and not self._sensor_fault_in_force(code)):
+                del self.sensor_faults[code]
+        # newest first; of one period, the last raised first (reversed, then a stable sort)
+        in_force = [(raised_s, code, reason)
+                    for code, (raised_s, reason) in self.sensor_faults.items()]
+        if self.fault:
+            in_force.append((self.fault_shown[2], self.fault, self.fault_message))
+        if not in_force:
+            return Display(text="")
+        in_force.reverse()
+        in_force.sort(key=lambda fault: -fault[0])
+        (_, code, message), others = in_force[0], tuple(c for _, c, _ in in_force[1:])
+        also = f" (also {', '.join(map(str, others))})" if others else ""
+        return Display(text=sign_text(message, DISPLAY_TEXT_MAX_CHARS - len(also)) + also,
+                       code=code, also_in_force=others)
+
     def _display(self, now_s: float, out: list) -> None:
-        """The LED sign's text: the current fault (the one the replies carry), "" when none;
-        sent when it changes and re-sent every ``DISPLAY_REFRESH_S``."""
-        shown = Display(text=self.fault_message, code=self.fault) if self.fault else Display(text="")
-        if shown != self.display or now_s - self.display_sent_s >= DISPLAY_REFRESH_S - TIME_EPS_S:
+        """The LED sign: ``_sign`` sent when it changes, at most once per
+        ``DISPLAY_CHANGE_MIN_S`` (a change held back is sent as the newest text once that has
+        passed), and re-sent every ``DISPLAY_REFRESH_S``."""
+        shown = self._sign(now_s)
+        changed = shown != self.display
+        if changed and now_s - self.display_changed_s < DISPLAY_CHANGE_MIN_S - TIME_EPS_S:
+            return   # a flood: the newest text goes out once the interval has passed
+        if changed or now_s - self.display_sent_s >= DISPLAY_REFRESH_S - TIME_EPS_S:
+            if changed:
+                self.display_changed_s = now_s
             self.display, self.display_sent_s = shown, now_s
             out.append((Topic.DISPLAY, shown))
 
