@@ -96,6 +96,7 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
                 tests/safety/test_plausibility.py tests/safety/test_actuators.py \
                 tests/servers/test_speed_table.py tests/servers/test_speed_server.py \
                 tests/servers/test_direction_hold.py tests/safety/test_secondary_audit.py \
+                tests/safety/test_rollover_limit.py::test_the_judge_flags_lateral_force_beyond_the_static_limit \
                 tests/safety/test_unasked_stops.py::test_the_judge_flags_motion_after_a_watchdog_stop_without_a_new_command \
                 tests/safety/test_unasked_stops.py::test_the_judge_holds_the_vehicle_after_an_emergency_stop_nobody_asked_for \
                 tests/safety/test_unasked_stops.py::test_the_judge_holds_a_set_speed_client_to_a_stop_it_did_not_ask_for \
