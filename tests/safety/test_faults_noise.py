@@ -43,13 +43,12 @@ def test_noisy_gps_at_standstill_does_not_cut_the_engine_of_a_healthy_vehicle(pr
     assert result.trace[-1]["engine"] == "running"
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known false alarm (issue 16): GPS/INS noise of 0.1 m / 0.1 m/s (the sweep's smallest) at "
-    "standstill (seed 1; 3 of seeds 1-8 are rejected): the move server takes the noisy GPS speed over the wheel speed (0) and rejects the "
-    "MOVE ('vehicle still moving reverse at 0.12 m/s: MOVE needs a standstill first') and the "
-    "driving module raises 'hard_brake' notices for 0.15-0.26 m/s of GPS speed noise; the healthy "
-    "stopped vehicle does not drive the MOVE (0.00 m of 30 m; the scenario sends it once)"))
 def test_slight_gps_noise_at_standstill_does_not_reject_a_move() -> None:
+    """GPS/INS noise of 0.1 m / 0.1 m/s (the sweep's smallest) at standstill, seed 1: the move
+    server once took the noisy GPS speed over the wheel speed (0) and rejected the MOVE ('vehicle
+    still moving reverse at 0.12 m/s: MOVE needs a standstill first'; 3 of seeds 1-8). A command
+    in the other direction now replaces the one in force (it stops first, issue 31 item 9), so
+    the healthy stopped vehicle drives its 30 m."""
     result = run("escape-hybrid", duration_s=12.0, seed=1, events=[
         sensor(0.3, "gps", "noise", for_s=1.0, sigma=0.1), move(0.5, 30, 5)])
     assert not [e for e in result.summary["events"] if e["kind"] == "rejected"]
