@@ -255,7 +255,8 @@ def test_only_periodic_state_may_drop(topic: str) -> None:
     commands = {Topic.MOVE_COMMAND, Topic.MOVE_REPLY, Topic.STEERING, Topic.MAX_SPEED,
                 Topic.ADVANCE, Topic.DRIVE_MODE, Topic.SET_SPEED, Topic.PEDALS, Topic.STEER,
                 Topic.POWERTRAIN, Topic.SAFETY, Topic.NOTICE, Topic.PLANNER_CLOCK, "sim/world",
-                "sim/faults"}
+                "sim/faults",
+                Topic.DISPLAY}   # sent on a change of fault (then once a second): never dropped
     assert (delivery(topic) == "command") is (topic in commands or topic == "x/y")
     assert (topic in STATE_TOPICS) is (delivery(topic) == "state")
 
