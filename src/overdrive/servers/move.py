@@ -86,6 +86,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    slippery_ground,
     tyres_at_limit,
 )
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
@@ -1107,7 +1108,7 @@ class MoveServer:
             now_s, maxspeed_mps=maxspeed,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
             speed_mps=self.speed_mps, wheel_speed_mps=self.wheel_mps,
-            traction_control=bool(status is not None and status.traction_control),
+            traction_control=bool(status is not None and slippery_ground(status)),
             abs_active=bool(status is not None and status.abs_active is True),
             hint=ss.hint if ss is not None else "none",
             goal_speed_mps=driving.goal_speed_mps if driving is not None else 0.0,
