@@ -4,7 +4,8 @@ Prints, per preset: a hard stop with ABS on dry road (gear changes and runwaits 
 from the next MOVE to motion); friction rising 0.25 -> 0.8 at 4 s in a 0.05 1/m curve
 (friction_max 0.8: when the planned speed first reaches 95 % of a run planned at 0.8 from the
 start); friction falling 0.8 -> 0.25 at 3 s, a STOP at 6 s (the estimate after the first ABS /
-traction report); state lost (90 % of the speed state for 5 s: top speed with and without).
+traction report); a hard stop in a 0.02 1/m curve; a 0.05 1/m curve on 0.4 with friction_max
+1.0 (its slides); state lost (90 % of the speed state for 5 s: top speed with and without).
 
 Usage: ``.venv/bin/python scripts/adaptation_figures.py``
 """
@@ -43,10 +44,11 @@ def run(preset: str, friction: float, events: list[dict], duration_s: float,
                         observers=[tap]), tap
 
 
-def hard_stop(preset: str) -> str:
+def hard_stop(preset: str, curvature_1pm: float = 0.0) -> str:
     friction = 0.8 if preset == "escape-hybrid" else 0.6
     _, tap = run(preset, friction, [{"at_s": 0.5, "move": {"distance_m": 300.0,
-                                                          "maxspeed_mps": 10.0}},
+                                                          "maxspeed_mps": 10.0,
+                                                          "curvature_1pm": curvature_1pm}},
                                     {"at_s": 8.0, "stop": {}},
                                     {"at_s": 14.0, "move": {"distance_m": 20.0,
                                                             "maxspeed_mps": 5.0}}], 18.0)
@@ -57,7 +59,9 @@ def hard_stop(preset: str) -> str:
     abs_n = sum(1 for _, k, m in tap.rows if k == Topic.VEHICLE_STATUS and m.abs_active)
     moving = min(t for t, k, m in tap.rows
                  if k == Topic.SPEED_STATE and t >= 14.0 and m.speed_mps > 0.5)
-    return (f"hard stop at mu {friction}: ABS reports {abs_n}, gears after {gears}, runwaits "
+    tc_n = sum(1 for _, k, m in tap.rows if k == Topic.VEHICLE_STATUS and m.traction_control)
+    return (f"hard stop at mu {friction}, curvature {curvature_1pm} 1/m: ABS reports {abs_n} "
+            f"(traction control {tc_n}), gears after {gears}, runwaits "
             f"after {waits}, next MOVE to 0.5 m/s {moving - 14.0:.2f} s")
 
 
@@ -88,6 +92,28 @@ def falling(preset: str) -> str:
             f"{result.nodes['move'].grip.estimate:.3f} (move)")
 
 
+def curve_hard_stop(preset: str) -> str:
+    return hard_stop(preset, 0.02)
+
+
+def curve_slides(preset: str) -> str:
+    """friction 0.4, friction_max 1.0, a 0.05 1/m curve for 30 s: traction-control episodes
+    (onsets more than 1 s apart) and the estimate at the end."""
+    result, tap = run(preset, 0.4, [{"at_s": 0.5, "move": {"distance_m": 400.0,
+                                                           "maxspeed_mps": 10.0,
+                                                           "curvature_1pm": 0.05}}], 30.0, 1.0)
+    onsets, active, last = [], False, -1e9
+    for t, k, m in tap.rows:
+        if k == Topic.VEHICLE_STATUS:
+            if m.traction_control and not active and t - last > 1.0:
+                onsets.append(t)
+            if m.traction_control:
+                last = t
+            active = bool(m.traction_control)
+    return (f"curve on 0.4, friction_max 1.0, 30 s: slides at {[round(t, 2) for t in onsets]}, "
+            f"estimate at the end {result.nodes['driving'].grip.estimate:.3f}")
+
+
 def lost_state(preset: str) -> str:
     def top(events: list[dict]) -> float:
         result, _ = run(preset, 0.8, [{"at_s": 0.5, "move": {"distance_m": 120.0,
@@ -100,7 +126,7 @@ def lost_state(preset: str) -> str:
 def main() -> None:
     for preset in PRESETS:
         print(preset)
-        for figure in (hard_stop, rising, falling, lost_state):
+        for figure in (hard_stop, curve_hard_stop, rising, falling, curve_slides, lost_state):
             print("  " + figure(preset))
 
 

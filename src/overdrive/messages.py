@@ -380,6 +380,20 @@ def tyres_at_limit(status: VehicleStatus) -> bool:
     return status.traction_control or status.abs_active is True
 
 
+def braking_at_limit(status: VehicleStatus) -> bool:
+    """ABS acts while the brake outweighs the throttle: the slip is the brakes' own (a hard stop,
+    even in a curve where the vehicle reports its traction control with it), not slippery ground
+    (issue 31). The stack never commands both pedals; they overlap only while the lagged throttle
+    closes after a stop is commanded (measured 2026-11-26: 20 % -> 5 % in ~0.3 s). An unreadable
+    pedal position (NaN) compares false: slip, the safe side."""
+    return status.abs_active is True and status.brake_pct > status.throttle_pct
+
+
+def slippery_ground(status: VehicleStatus) -> bool:
+    """Traction control reports a spin or a slide that braking at the limit does not explain."""
+    return status.traction_control and not braking_at_limit(status)
+
+
 class WheelSpeed(Message, frozen=True):
     speed_mps: float               # signed by gear direction; differs from ground speed when slipping
 

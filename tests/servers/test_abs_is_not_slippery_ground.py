@@ -11,6 +11,7 @@ Judged from ground truth (the plant's speed and gear), both presets.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import pytest
@@ -90,31 +91,40 @@ def test_a_hard_stop_with_abs_changes_no_gear_and_waits_for_nothing(preset: str,
         assert result.summary["violations"] == [], friction
 
 
-def _status(traction: bool, abs_active: bool | None, speed_mps: float = 8.0) -> list:
+def _status(traction: bool, abs_active: bool | None, speed_mps: float = 8.0,
+            throttle_pct: float = 0.0, brake_pct: float = 80.0) -> list:
     p = PRESETS["escape-hybrid"]
     return [(Topic.VEHICLE_STATUS, VehicleStatus(
                 gear=p.drive_gear, shifting=False, engine="running", engine_rpm=2000.0,
-                start_failed=False, traction_control=traction, steer_pct=0.0, throttle_pct=0.0,
-                brake_pct=80.0, safety_mode="drive-by-wire", abs_active=abs_active)),
+                start_failed=False, traction_control=traction, steer_pct=0.0,
+                throttle_pct=throttle_pct, brake_pct=brake_pct, safety_mode="drive-by-wire",
+                abs_active=abs_active)),
             (Topic.GPS_INS, GpsIns(x_m=0.0, y_m=0.0, heading_rad=0.0, speed_mps=speed_mps,
                                    pitch_rad=0.0, roll_rad=0.0, odometer_m=0.0))]
 
 
-@pytest.mark.parametrize(("traction", "abs_active", "slippery"), [
-    (False, True, False),    # ABS reported apart, no spin or slide: braking at the limit
-    (True, True, True),      # a slide while the ABS acts (a curve): slippery
-    (True, False, True),     # a spin or a slide: slippery
-    (True, None, True),      # a vehicle reporting one flag: taken as slip, ABS or not
-    (False, None, False),
-    (False, False, False),
+@pytest.mark.parametrize(("traction", "abs_active", "throttle_pct", "brake_pct", "slippery"), [
+    (False, True, 0.0, 80.0, False),   # ABS reported apart, no spin or slide: braking at the limit
+    (True, True, 0.0, 80.0, False),    # a hard stop in a curve: ABS with the slide flag, brake on
+    (True, True, 12.0, 80.0, False),   # ... while the lagged throttle still closes
+    (True, True, 40.0, 30.0, True),    # the throttle outweighs the brake: a spin, slippery
+    (True, True, math.nan, 80.0, True),  # an unreadable pedal: slip, the safe side
+    (True, False, 0.0, 80.0, True),    # a spin or a slide: slippery
+    (True, None, 0.0, 80.0, True),     # a vehicle reporting one flag: taken as slip, ABS or not
+    (False, None, 0.0, 80.0, False),
+    (False, False, 0.0, 80.0, False),
 ])
-def test_only_traction_control_makes_the_ground_slippery(traction: bool, abs_active: bool | None,
-                                                         slippery: bool) -> None:
+def test_only_traction_control_makes_the_ground_slippery(
+        traction: bool, abs_active: bool | None, throttle_pct: float, brake_pct: float,
+        slippery: bool) -> None:
+    """Slippery ground (low gear, issue 31) is traction control the brakes do not explain; the
+    slide checks (traction monitor, issue 30) see every traction-control report."""
     node = DrivingModule(PRESETS["escape-hybrid"])
     node.step(0.0, _status(False, False))
-    node.step(0.01, _status(traction, abs_active))
+    node.step(0.01, _status(traction, abs_active, throttle_pct=throttle_pct,
+                            brake_pct=brake_pct))
     assert (node.slippery_s == 0.01) is slippery
-    assert node.traction.active(0.02) is slippery
+    assert node.traction.active(0.02) is traction
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

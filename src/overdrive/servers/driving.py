@@ -65,6 +65,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    slippery_ground,
     tyres_at_limit,
 )
 from overdrive.safety.actuators import SteeringMonitor
@@ -979,8 +980,9 @@ class DrivingModule:
             if msg.traction_control is True:
                 # a spin or a slide (ABS too, on a vehicle that does not report it apart);
                 # ABS reported apart is braking at the limit, not slippery ground (issue 31):
-                # it only feeds the friction estimate (_learn_grip)
-                self._slip(now_s)
+                # it feeds the friction estimate (_learn_grip) and, with traction control (a
+                # hard stop in a curve), the slide checks, but wants no low gear
+                self._slip(now_s, slippery=slippery_ground(msg))
 
     def _learn_grip(self, now_s: float, dt_s: float, v_mps: float, pitch_rad: float) -> None:
         """Friction online (issue 31, ``dynamics.grip_estimate``) from a trusted IMU."""
@@ -992,9 +994,10 @@ class DrivingModule:
             accel_y_mps2=imu.accel_y_mps2, pitch_rad=pitch_rad,
             direction=self.gears.direction(status.gear), slipping=tyres_at_limit(status))
 
-    def _slip(self, now_s: float) -> None:
+    def _slip(self, now_s: float, slippery: bool = True) -> None:
         self.traction.update(now_s, True)
-        self.slippery_s = now_s
+        if slippery:
+            self.slippery_s = now_s
 
     # ------------------------------------------------------------------ step
 

@@ -86,6 +86,7 @@ from overdrive.messages import (
     Topic,
     VehicleStatus,
     WheelSpeed,
+    slippery_ground,
     tyres_at_limit,
 )
 from overdrive.safety.plausibility import MotionPlausibility, plausibility_config
@@ -194,6 +195,10 @@ class MoveServerConfig(msgspec.Struct, frozen=True, forbid_unknown_fields=True, 
     turn_in_m: float = 3.0             # slow steering: travel at most this while it catches up
     turn_in_min_mps: float = 1.0       # ... but never demand less than this for it
     estimates_period_s: float = 0.1
+    lag_explained_mps2: float = 0.3      # acceleration this close to the throttle estimate's
+                                         # prediction explains a lag (allowance for the speed
+                                         # state's filtered acceleration and the pedal's lag; mud
+                                         # at 0.5 of the drive takes more)
     throttle_reserve_mps2: float = 0.05  # a weak throttle's reachable speed keeps this much
                                         # acceleration in hand (the speed loop's margin to
                                         # hold a speed; the condition monitor's lag test)
@@ -1117,7 +1122,7 @@ class MoveServer:
             now_s, maxspeed_mps=maxspeed,
             pitch_rad=self.gps.pitch_rad if self.gps is not None else 0.0,
             speed_mps=self.speed_mps, wheel_speed_mps=self.wheel_mps,
-            traction_control=bool(status is not None and status.traction_control),
+            traction_control=bool(status is not None and slippery_ground(status)),
             abs_active=bool(status is not None and status.abs_active is True),
             hint=ss.hint if ss is not None else "none",
             goal_speed_mps=driving.goal_speed_mps if driving is not None else 0.0,
@@ -1127,7 +1132,7 @@ class MoveServer:
             gps_age_s=now_s - self.gps_s if self.gps is not None else 0.0,
             lateral_cap_mps=v_lat, degraded=self.model.degraded(),
             actuator_cap_mps=actuator_cap, actuator_reason=why,
-            input_gap_s=gap_s, input_gap_topic=gap_topic)
+            input_gap_s=gap_s, input_gap_topic=gap_topic, lag_explained=self._lag_explained())
         self._reduction_notices(active is not None and self.phase not in ("stopping",
                                                                            "estopped"), out)
         limit = min(maxspeed, self.monitor.cap_mps())
@@ -1197,6 +1202,24 @@ class MoveServer:
             else:
                 reasons.append(f"throttle at {e_t:.0%}")
         return cap, ("actuator response degraded: " + "; ".join(reasons)) if reasons else ""
+
+    def _lag_explained(self) -> bool:
+        """The speed state's acceleration is what the throttle estimate predicts for the
+        throttle reported (within ``lag_explained_mps2``): a weak throttle, not sticky ground
+        (issue 31). Mud or soft ground decelerates beyond the prediction and stays sticky."""
+        ss, status, p = self.speed_state, self.status, self.params
+        e_t = self.model.throttle.value
+        if ss is None or status is None or e_t >= self.config.adaptive.degraded_throttle:
+            return False
+        gear = self.gears.get(ss.gear)
+        want = -1 if self.direction == "reverse" else 1
+        if gear is None or gear.direction != want or not finite(ss.accel_mps2):
+            return False
+        v = abs(ss.speed_mps)
+        grade, _ = self._grade_roll()
+        expected = (e_t * 0.01 * status.throttle_pct * drive_authority_mps2(p, gear, v)
+                    - resistance_mps2(p, v, math.sin(grade)))
+        return want * ss.accel_mps2 >= expected - self.config.lag_explained_mps2
 
     def _throttle_reach_mps(self, effectiveness: float, grade: float,
                             maxspeed: float) -> float | None:

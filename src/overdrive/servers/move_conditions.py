@@ -147,7 +147,10 @@ class ConditionMonitor:
                speed_server_estop: bool, gps_age_s: float, lateral_cap_mps: float,
                degraded: list[str], actuator_cap_mps: float, actuator_reason: str,
                abs_active: bool = False, input_gap_s: float = 0.0,
-               input_gap_topic: str = "") -> None:
+               input_gap_topic: str = "", lag_explained: bool = False) -> None:
+        """One period. ``lag_explained``: the vehicle accelerates as the throttle estimate says
+        it can (a weak throttle, already capped as an actuator), so falling short of the goal
+        at full throttle is not sticky ground."""
         cfg, p = self.config, self.params
         found: dict[str, Reduction] = {}
         v = abs(speed_mps)
@@ -181,7 +184,8 @@ class ConditionMonitor:
             reason = reason or "traction control active"
         if hint == "slipping":
             reason = reason or "speed server reports slipping"
-        lagging = goal_speed_mps - v > cfg.lag_mps and throttle_pct >= cfg.lag_throttle_pct
+        lagging = (goal_speed_mps - v > cfg.lag_mps and throttle_pct >= cfg.lag_throttle_pct
+                   and not lag_explained)
         if lagging:
             if self.lag_since_s is None:
                 self.lag_since_s = now_s

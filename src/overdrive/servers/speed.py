@@ -88,6 +88,7 @@ from overdrive.messages import (
     VehicleStatus,
     WheelSpeed,
     sign_text,
+    slippery_ground,
     tyres_at_limit,
 )
 from overdrive.safety.actuators import BRAKE_LOST, CUTS_ENGINE, PedalMonitor
@@ -933,7 +934,7 @@ class SpeedServer:
                               accel_mps2=self.accel_filt_mps2, target_mps=target,
                               sin_pitch=math.sin(pitch), engine_rpm=status.engine_rpm,
                               throttle_pct=status.throttle_pct,
-                              traction_control=status.traction_control,
+                              traction_control=slippery_ground(status),
                               abs_active=status.abs_active is True,
                               held_cannot_climb=self.direction_hold.cannot_climb)
         self.hint = self.hints.update(now_s, view)
