@@ -43,13 +43,7 @@ def runwaits(events: list[dict[str, Any]]) -> list[float]:
     return [e["t_s"] for e in events if e["kind"] == "speed_state" and e["to"] == "runwait"]
 
 
-@pytest.mark.parametrize("preset", [
-    "escape-hybrid",
-    pytest.param("ranger-6x6", marks=pytest.mark.xfail(strict=True, reason=(
-        "issue 31 item 9 left open: the 1 m crawl of the terminal approach (creep_zone_m, kept "
-        "for a stuck brake's margin) plus the Ranger's 1.5 s shift leave legs 2-3 unfinished "
-        "when the next command replaces them: x = 10.63 m"))),
-])
+@pytest.mark.parametrize("preset", PRESET_NAMES)
 def test_a_forward_reverse_manoeuvre_finishes_where_its_commands_end(preset: str) -> None:
     """Every command accepted (none ``busy``), never past an authorization (the judge), the
     final x within 0.3 m of 12 - 6 + 10 - 5 = 11 m, and one runwait per change of direction."""
