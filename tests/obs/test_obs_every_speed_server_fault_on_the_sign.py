@@ -52,8 +52,10 @@ def run_with_tap(name: str, preset: str) -> SignTap:
     return tap
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-@pytest.mark.parametrize("name", ["sensor-freeze-imu.yaml", "sensor-freeze-wheel-speed.yaml",
+@pytest.mark.parametrize("name", [pytest.param("sensor-freeze-imu.yaml", marks=pytest.mark.variant_edge),
+                                  "sensor-freeze-wheel-speed.yaml",
                                   "sensor-freeze-gps.yaml", "sensor-freeze-gps-and-wheel-speed.yaml",
                                   "sensor-error-gps-step.yaml",
                                   "sensor-error-gps-speed-drift.yaml"])

@@ -25,6 +25,8 @@ STOPPED_MPS = 0.05
 END_TOLERANCE_M = 0.05  # the judge's position noise allowance at an authorization's end
 INTERRUPTIONS = {"pause": {"safestop": "pause"}, "door": {"door": "open"}}
 
+EDGE = pytest.mark.variant_edge   # `make test` runs 1 in 4 of the sweep plus these (tests/conftest.py)
+
 
 def drive(preset: str, via: str, distance_m: float, events: list[dict],
           overrides: dict | None = None, duration_s: float = 18.0):
@@ -48,10 +50,11 @@ def stop_after(result, t0_s: float) -> tuple[float, float, float]:
     return v0, float(stop["t_s"]) - t0_s, float(stop["x_m"]) - x0
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("via", ["move", "driving"])
 @pytest.mark.parametrize("kind", sorted(INTERRUPTIONS))
-@pytest.mark.parametrize("rate_mps2", [1.5, 2.5, 4.0])
+@pytest.mark.parametrize("rate_mps2", [1.5, pytest.param(2.5, marks=EDGE), 4.0])
 def test_a_pause_at_8_mps_stops_at_the_set_rate(preset: str, via: str, kind: str,
                                                 rate_mps2: float) -> None:
     result = drive(preset, via, 120.0, [{"at_s": ON_S, **INTERRUPTIONS[kind]}],
@@ -65,9 +68,11 @@ def test_a_pause_at_8_mps_stops_at_the_set_rate(preset: str, via: str, kind: str
     assert result.summary["violations"] == []
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("via", ["move", "driving"])
-@pytest.mark.parametrize("on_s", [7.4, 7.8, 8.2, 8.6, 9.0])
+@pytest.mark.parametrize("on_s", [pytest.param(7.4, marks=EDGE), 7.8, 8.2, 8.6,
+                                  pytest.param(9.0, marks=EDGE)])
 def test_a_pause_with_a_short_authorization_still_stops_inside_it(preset: str, via: str,
                                                                   on_s: float) -> None:
     """A 40 m authorization: paused from 15 m before its end (harder than the pause rate is
@@ -80,8 +85,10 @@ def test_a_pause_with_a_short_authorization_still_stops_inside_it(preset: str, v
     assert result.summary["violations"] == []
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
-@pytest.mark.parametrize("ahead_m", [12.0, 13.0, 14.0, 15.0, 16.0])
+@pytest.mark.parametrize("ahead_m", [pytest.param(12.0, marks=EDGE), 13.0, 14.0, 15.0,
+                                     pytest.param(16.0, marks=EDGE)])
 def test_a_short_authorization_gets_the_least_rate_that_keeps_it(preset: str,
                                                                  ahead_m: float) -> None:
     """Through the driving module alone: the end a few metres ahead when the pause comes at
@@ -144,9 +151,10 @@ def test_brakes_weakened_below_the_pause_rate_are_refused_naming_the_brakes() ->
     assert err.value.field == "max_brake_decel_mps2" and "pause_decel_mps2" in err.value.reason
 
 
+@pytest.mark.variants
 @pytest.mark.parametrize("preset", PRESET_NAMES)
 @pytest.mark.parametrize("via", ["move", "driving"])
-@pytest.mark.parametrize("pause_s", [0.3, 1.0, 2.0])
+@pytest.mark.parametrize("pause_s", [pytest.param(0.3, marks=EDGE), 1.0, 2.0])
 def test_a_pause_released_before_the_vehicle_stands_stops_it_now(preset: str, via: str,
                                                                   pause_s: float) -> None:
     """Back in drive-by-wire while still stopping, the stack has no command in force: it stops
