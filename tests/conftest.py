@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import copy
+import itertools
+import math
 from typing import Any
 
 import pytest
@@ -75,3 +77,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if drop:
         config.hook.pytest_deselected(items=drop)
         items[:] = keep
+
+
+def travel_after_m(result, t0_s: float) -> float:
+    """Path length the plant drove from ``t0_s`` on (ground truth: the trace's x/y)."""
+    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
+    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
+               for a, b in itertools.pairwise(rows))

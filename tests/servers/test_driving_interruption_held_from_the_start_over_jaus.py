@@ -9,14 +9,11 @@ Entering any mode but the software pause now latches, from the first status on. 
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 RELEASE_S = 5.0
 STILL_M = 0.02      # travel allowed after the release with no authorization sent after it
@@ -38,11 +35,6 @@ def held_from_start(preset: str, interface: str, kind: str, sends: tuple = ((1.0
                          for at_s, d in sends)]}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

@@ -5,14 +5,11 @@ release; an authorization sent once the vehicle is back does. Judged from the pl
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 INTERRUPTIONS = {
     "pause": ({"safestop": "pause"}, {"safestop": "run"}, "paused"),
@@ -33,12 +30,6 @@ def drive(preset: str, kind: str, extra: list[dict] = (), duration_s: float = 30
                        {"at_s": ON_S, **on}, {"at_s": OFF_S, **off}, *extra]}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    """Path length the plant drove after ``t0_s`` (ground truth x/y)."""
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 def speed_states(result) -> list[str]:

@@ -8,14 +8,11 @@ Judged from the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 STILL_M = 0.02      # travel allowed once the vehicle has stopped, with no new authorization
 SETTLED_S = 9.0     # 4 s after the pause: stopped from 6 m/s at any deceleration the stack uses
@@ -33,11 +30,6 @@ def paused_briefly(preset: str, pause_s: float, stall: tuple[float, float] | Non
             "duration_s": 20.0, "events": events}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

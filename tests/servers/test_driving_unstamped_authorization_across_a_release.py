@@ -9,16 +9,13 @@ the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.messages import AdvanceAuthorization, Topic
 from overdrive.run.compose import build_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 RELEASE_S = 12.0
 STILL_M = 0.02      # travel allowed after the release with no authorization sent after it
@@ -63,11 +60,6 @@ def paused(preset: str, sends: list[tuple[float, float]], delay_s: float | None,
     nodes.insert(1, UnstampedSource([(1.0, 60.0), *sends]))   # after the vehicle, like the player
     return run_scenario(scenario, None, plot=False, record_mcap=False, nodes=nodes)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

@@ -8,15 +8,12 @@ the plant's own x/y and the run's judge."""
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.run.compose import build_nodes
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 from tests.servers.test_driving_unstamped_authorization_across_a_release import UnstampedSource
 
 RELEASE_S = 12.0
@@ -40,11 +37,6 @@ def paused(preset: str, delay_s: float, sends: list[tuple[float, float]]):
     nodes.insert(1, UnstampedSource([(1.0, 60.0), *sends]))
     return run_scenario(scenario, None, plot=False, record_mcap=False, nodes=nodes)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

@@ -9,14 +9,11 @@ code ``interrupted``), streams 0, and its next command drives. Judged from the p
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 SEND_S = 12.0       # the new MOVE, 7 s after the pause
 
@@ -34,11 +31,6 @@ def paused_briefly(preset: str, stall_s: float | None):
             "duration_s": 40.0, "events": events}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

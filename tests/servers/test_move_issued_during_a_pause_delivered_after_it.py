@@ -8,14 +8,11 @@ back is answered `not_ready` too (``MoveServer._issued_before_back``). Judged fr
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 RELEASE_S = 12.0
 SENT_S = 11.9       # 0.1 s before the release, issued_s 11.9 on the planner's clock
@@ -37,11 +34,6 @@ def paused_with_a_late_move(preset: str, delay_s: float | None, sends: tuple = (
             "duration_s": 40.0, "events": events}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.mark.parametrize("preset", PRESET_NAMES)

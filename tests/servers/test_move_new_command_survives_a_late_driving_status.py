@@ -10,16 +10,13 @@ interruption this server saw end itself is ignored (``MoveServer._seen_end_of``)
 
 from __future__ import annotations
 
-import itertools
-import math
-
 import pytest
 
 from overdrive.bus import faults
 from overdrive.messages import Topic
 from overdrive.run.sim import run_scenario
 from overdrive.scenario.schema import parse_scenario
-from tests.conftest import PRESET_NAMES
+from tests.conftest import PRESET_NAMES, travel_after_m
 
 PAUSE_S = 5.0
 MOVE = {"maxspeed_mps": 6, "curvature_1pm": 0}
@@ -40,11 +37,6 @@ def paused_then_moved(preset: str, pause_for_s: float, send_s: float, delay_s: f
             "duration_s": 30.0, "events": events}
     return run_scenario(parse_scenario(data), None, plot=False, record_mcap=False)
 
-
-def travel_after_m(result, t0_s: float) -> float:
-    rows = [r for r in result.trace if float(r["t_s"]) >= t0_s]
-    return sum(math.hypot(float(b["x_m"]) - float(a["x_m"]), float(b["y_m"]) - float(a["y_m"]))
-               for a, b in itertools.pairwise(rows))
 
 
 @pytest.fixture
