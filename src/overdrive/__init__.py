@@ -20,7 +20,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("vehicle", "servers"),
     ("safety",),
     ("dynamics",),
-    ("messages", "jaus", "fuzzing"),
+    ("messages", "jaus", "kits", "fuzzing"),
 )
 """Top to bottom. A name is a folder (``overdrive/<name>/``) or, on the bottom layer, a module
 (``messages``, ``fuzzing``); the protocol codecs (``jaus``, later the CAN kits and ROS 2 CDR)
