@@ -64,6 +64,7 @@ class Topic:
     NOTICE = "events"                        # any node -> recorder (Notice)
     DISPLAY = "display"                      # speed server -> LED sign, runners' console (Display)
     TICK = "process/tick"                    # every process of a launch -> launcher (NodeTick)
+    CAN_FRAMES = "can/frames"                # CAN edge -> recorder (CanTraffic: raw frames)
 
 
 # --------------------------------------------------------------------------- move server (seed 004)
@@ -464,6 +465,25 @@ class Notice(Message, frozen=True):
     source: str
     code: str = ""
     reason: str = ""
+
+
+# --------------------------------------------------------------------------- CAN logs
+
+class CanFrameRecord(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """One raw CAN frame as it crossed the stack's CAN edge (for ``run.mcap`` and candump/ASC)."""
+
+    time_s: float                  # when the edge sent or received it (the run's clock)
+    arbitration_id: int
+    data: bytes
+    direction: Literal["rx", "tx"]
+    is_extended: bool = False
+
+
+class CanTraffic(Message, frozen=True):
+    """The raw frames one CAN edge sent and received since its last ``CanTraffic``."""
+
+    channel: str                   # the python-can channel, as resolved ("can0", "vcan0", ...)
+    frames: tuple[CanFrameRecord, ...]
 
 
 # --------------------------------------------------------------------------- supervision
