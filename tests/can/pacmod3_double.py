@@ -53,6 +53,8 @@ class KitDouble:
         self.log: list[tuple[float, object]] = []   # every command taken, in order
         self.next_report_s = 0.0
         self.silent: set[type] = set()              # report types not sent (fault injection)
+        self.sent: list[tuple[float, type]] = []    # (time, report type) of every report sent
+        self.now_s = 0.0
 
     def take(self, frame: CanFrame, now_s: float) -> None:
         msg = self.codec.decode(frame)
@@ -113,6 +115,7 @@ class KitDouble:
         if now_s + 1e-9 < self.next_report_s:
             return []
         self.next_report_s = max(self.next_report_s + 1.0 / 30.0, now_s)
+        self.now_s = now_s
         return self.reports()
 
     def reports(self) -> list[CanFrame]:
@@ -136,4 +139,6 @@ class KitDouble:
             VehicleSpeedRpt(speed_mps=self.speed_mps, valid=True),
             YawRateRpt(yaw_rate_radps=self.yaw_radps if hasattr(self, "yaw_radps") else 0.0),
         ]
-        return [self.codec.encode(m) for m in msgs if type(m) not in self.silent]
+        msgs = [m for m in msgs if type(m) not in self.silent]
+        self.sent.extend((self.now_s, type(m)) for m in msgs)
+        return [self.codec.encode(m) for m in msgs]

@@ -235,7 +235,8 @@ class Pacmod3Client:
         self.x_m = self.y_m = self.heading_rad = 0.0
         self.odometer_m = 0.0
         self.fresh = False
-        self.silent: str | None = None       # the report that went silent (latched fault)
+        self.silent: str | None = None       # the report silent now (no sensors meanwhile)
+        self.silence_seen: str | None = None   # a silence seen, until an engage clears it
         self.bus_errors: list[str] = []
 
     # ------------------------------------------------------------------ wire in
@@ -343,8 +344,9 @@ class Pacmod3Client:
         return None
 
     def _fault_reason(self, now_s: float) -> str | None:
-        silent = self._silent(now_s)
+        silent = self._silent(now_s) or self.silence_seen
         if silent is not None:
+            self.silence_seen = silent   # seen between two frames: kept for the workflow
             return f"{silent} report silent for more than {self.config.report_timeout_s:.3f} s"
         if self.bus_errors:
             return f"CAN bus error: {self.bus_errors[-1]}"
@@ -358,7 +360,7 @@ class Pacmod3Client:
         shift = self.system_rpt.get("shift")
         if shift is not None and shift.output_value == Gear.ERROR:
             return "shift report: gear ERROR"
-        if self.state == "engaged":
+        if self.state == "engaged" and not (g is not None and g.usr_can_timeout):
             for s in self.systems:
                 r = self.system_rpt.get(s)
                 if r is not None and not r.enabled and not r.override_active:
@@ -367,7 +369,11 @@ class Pacmod3Client:
 
     def request_engage(self, now_s: float) -> str | None:
         """The operator's act: engage (or re-engage after an override, a timeout or a fault).
-        Returns why it is refused (None: the engage sequence starts at the next frame)."""
+        Returns why it is refused (None: the engage sequence starts at the next frame). A
+        silence or bus error that is over is the operator's to acknowledge here."""
+        if self._silent(now_s) is None:
+            self.silence_seen = None
+        self.bus_errors.clear()
         why = refusal(self.state, self._conditions(now_s))
         if why is not None:
             self.stats.engage_refused += 1
@@ -393,6 +399,7 @@ class Pacmod3Client:
             self.disable_frames = 0
             self.edge_s.clear()
             self.bus_errors.clear()
+            self.silence_seen = None
             self._told.discard("state")
         reason = {"override": "operator override: the kit hands the vehicle to its driver",
                   "kit_timeout": "the kit timed out our commands (usr_can_timeout)",
@@ -600,7 +607,7 @@ class Pacmod3Client:
         """Bus messages for what arrived since the last call (nothing once a report is silent)."""
         silent = self._silent(now_s)
         if silent is not None and self.silent is None:
-            self.silent = silent
+            self.silent = self.silence_seen = silent
             self._notice("silent", f"PACMod {silent} report silent for more than "
                                    f"{self.config.report_timeout_s:.3f} s: no more sensors")
         elif silent is None:
