@@ -13,7 +13,6 @@ override any parameter by name.
 from __future__ import annotations
 
 import difflib
-import itertools
 import math
 import re
 from collections.abc import Iterable, Mapping
@@ -337,7 +336,7 @@ def check_steering_ratio(field: str, value: Any) -> tuple[tuple[float, float], .
 def steering_ratio_at(points: tuple[tuple[float, float], ...], wheel_rad: float) -> float:
     """The ratio at steering-wheel angle ``wheel_rad`` (either sign); ``points`` checked."""
     s = abs(wheel_rad)
-    for (a0, r0), (a1, r1) in itertools.pairwise(points):
+    for (a0, r0), (a1, r1) in zip(points, points[1:], strict=False):
         if s <= a1:
             return r0 + (r1 - r0) * (max(s, a0) - a0) / (a1 - a0)
     return points[-1][1]
@@ -353,7 +352,7 @@ def steering_wheel_rad(points: tuple[tuple[float, float], ...], road_rad: float)
     ``road_wheel_rad``: exact on each linear segment, s = road c / (1 - road slope))."""
     target = abs(road_rad)
     sign = 1.0 if road_rad >= 0.0 else -1.0
-    for (a0, r0), (a1, r1) in itertools.pairwise(points):
+    for (a0, r0), (a1, r1) in zip(points, points[1:], strict=False):
         if target <= a1 / r1:
             slope = (r1 - r0) / (a1 - a0)
             c = r0 - slope * a0
