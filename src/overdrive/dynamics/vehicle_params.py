@@ -71,12 +71,6 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     max_steer_rad: float = 0.5          # road-wheel angle at full lock
     steer_rate_rps: float = 0.6         # road-wheel angle rate limit of the steering actuator
     steer_lag_s: float = 0.05
-    steering_ratio: tuple[tuple[float, float], ...] = ()   # steering-WHEEL angle / road-wheel
-                                        # angle, as points (|steering-wheel angle| rad, ratio),
-                                        # linear between them, constant beyond: one point is a
-                                        # constant ratio, several a variable one. Empty: not
-                                        # stated (a kit commanding the steering wheel's angle,
-                                        # PACMod, refuses the vehicle; the XGV commands % of lock)
     # envelope (seed 003)
     skidpad_lat_g: float = 0.8          # lateral g on the skid pad
     stopping_distance_60mph_m: float = 40.0  # 60-0 mph stopping distance (26.82 m/s)
@@ -280,91 +274,11 @@ ESTOP_ENGINE_CUTS: dict[str, str] = {
 """``estop_engine_cut`` values (seed 000's e-stop disable: "shut off the engine (if configured
 to do so)"); docs/drive-your-own-vehicle.md, "Safety devices", justifies the default."""
 
-STEERING_RATIO_RANGE: tuple[float, float, str] = (
-    5.0, 40.0, "steering-wheel / road-wheel angle: racing cars ~10, cars 12-20, trucks up to ~30")
-STEERING_WHEEL_MAX_RAD: float = 25.0
-"""The largest steering-wheel angle a ratio point may name: ~4 turns each side (a truck's ~3.5
-turns from centre to lock is ~22 rad)."""
-STEERING_RATIO_POINTS_MAX = 32
-"""Points a variable ratio may list (a calibration table)."""
-
-
-def check_steering_ratio(field: str, value: Any) -> tuple[tuple[float, float], ...]:
-    """``steering_ratio`` as a tuple of (steering-wheel angle rad, ratio) points, or a
-    ``VehicleSpecError``: a list of ``[angle, ratio]`` pairs, the first at angle 0, angles
-    increasing, each ratio within ``STEERING_RATIO_RANGE``, and the road-wheel angle rising
-    with the steering-wheel angle on every segment (a ratio falling faster than the angle grows
-    would fold the map: two wheel angles for one road-wheel angle, no unique command)."""
-    if not isinstance(value, list | tuple):
-        raise VehicleSpecError(field, "must be a list of [steering-wheel angle rad, ratio] "
-                                      f"points, got {_show(value)}")
-    if len(value) > STEERING_RATIO_POINTS_MAX:
-        raise VehicleSpecError(field, f"{len(value)} points (at most {STEERING_RATIO_POINTS_MAX})")
-    points: list[tuple[float, float]] = []
-    low, high, why = STEERING_RATIO_RANGE
-    for i, point in enumerate(value):
-        where = f"{field}[{i}]"
-        if not isinstance(point, list | tuple) or len(point) != 2:
-            raise VehicleSpecError(where, "must be a pair [steering-wheel angle rad, ratio], "
-                                          f"got {_show(point)}")
-        for j, number in enumerate(point):
-            if (isinstance(number, bool) or not isinstance(number, int | float)
-                    or not math.isfinite(number)):
-                raise VehicleSpecError(f"{where}[{j}]", f"must be a finite number, got "
-                                                        f"{_show(number)}")
-        angle, ratio = float(point[0]), float(point[1])
-        if not low <= ratio <= high:
-            raise VehicleSpecError(f"{where}[1]", f"ratio must be within {low:g}..{high:g} "
-                                                  f"({why}), got {_show(point[1])}")
-        if not 0.0 <= angle <= STEERING_WHEEL_MAX_RAD:
-            raise VehicleSpecError(f"{where}[0]", f"angle must be within 0..{STEERING_WHEEL_MAX_RAD:g}"
-                                                  f" rad, got {_show(point[0])}")
-        if i == 0 and angle != 0.0:
-            raise VehicleSpecError(f"{where}[0]", "the first point is at the centre (angle 0)")
-        if points and angle <= points[-1][0]:
-            raise VehicleSpecError(f"{where}[0]", "angles must increase from point to point")
-        if points:
-            a0, r0 = points[-1]
-            slope = (ratio - r0) / (angle - a0)
-            if r0 - slope * a0 <= 0.0:   # road = s / (c + slope s) rises iff c > 0
-                raise VehicleSpecError(where, "the ratio falls so fast that the road-wheel "
-                                              "angle would fall as the steering wheel turns")
-        points.append((angle, ratio))
-    return tuple(points)
-
-
-def steering_ratio_at(points: tuple[tuple[float, float], ...], wheel_rad: float) -> float:
-    """The ratio at steering-wheel angle ``wheel_rad`` (either sign); ``points`` checked."""
-    s = abs(wheel_rad)
-    for (a0, r0), (a1, r1) in zip(points, points[1:], strict=False):
-        if s <= a1:
-            return r0 + (r1 - r0) * (max(s, a0) - a0) / (a1 - a0)
-    return points[-1][1]
-
-
-def road_wheel_rad(points: tuple[tuple[float, float], ...], wheel_rad: float) -> float:
-    """Road-wheel angle of a steering-wheel angle (same sign convention)."""
-    return wheel_rad / steering_ratio_at(points, wheel_rad)
-
-
-def steering_wheel_rad(points: tuple[tuple[float, float], ...], road_rad: float) -> float:
-    """Steering-wheel angle giving road-wheel angle ``road_rad`` (the inverse of
-    ``road_wheel_rad``: exact on each linear segment, s = road c / (1 - road slope))."""
-    target = abs(road_rad)
-    sign = 1.0 if road_rad >= 0.0 else -1.0
-    for (a0, r0), (a1, r1) in zip(points, points[1:], strict=False):
-        if target <= a1 / r1:
-            slope = (r1 - r0) / (a1 - a0)
-            c = r0 - slope * a0
-            return sign * target * c / (1.0 - target * slope)
-    return sign * target * points[-1][1]
-
-
 CHOICES: dict[str, dict[str, str]] = {"estop_engine_cut": ESTOP_ENGINE_CUTS}
 """Parameters that take one of a few names."""
 
 OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob", *SENSOR_CHECKS,
-                              *SECONDARY_BRAKING, *SAFETY_DEVICES, "steering_ratio"})
+                              *SECONDARY_BRAKING, *SAFETY_DEVICES})
 """Simulation knobs (failed crank attempts, 0 unless stated), the sensor cross-checks'
 thresholds, the parking brake and the safety devices (defaults unless stated): every other field
 is required."""
@@ -502,13 +416,9 @@ def with_overrides(base: VehicleParams, overrides: Mapping[Any, Any]) -> Vehicle
         if key not in PARAMETERS:
             raise VehicleSpecError(str(key), "not a vehicle parameter"
                                              + did_you_mean(str(key), PARAMETERS))
-        if key != "steering_ratio":
-            _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
     merged = msgspec.to_builtins(base)
     merged.update(overrides)
-    if "steering_ratio" in overrides:
-        merged["steering_ratio"] = check_steering_ratio("steering_ratio",
-                                                        overrides["steering_ratio"])
     params = msgspec.convert(merged, VehicleParams)
     _check_roles(params)
     _check_consistent(params, set(overrides))
@@ -536,10 +446,7 @@ def vehicle_from_data(data: Any) -> VehicleParams:
     _check_name("name", data["name"])
     values = {k: data[k] for k in PARAMETERS if k in data}
     for key, value in values.items():
-        if key == "steering_ratio":
-            values[key] = check_steering_ratio(key, value)
-        else:
-            _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
     if (values.get("park_brake_decel_mps2", 0.0) > 0.0
             and values.get("park_brake_max_apply_mps", 0.0) > 0.0
             and "park_brake_apply_s" not in values):
@@ -598,5 +505,4 @@ def vehicle_to_data(params: VehicleParams) -> dict[str, Any]:
     data = msgspec.to_builtins(params)
     data["name"] = data.pop("preset")
     data["gears"] = list(data["gears"])     # a list, as YAML and JSON hold it
-    data["steering_ratio"] = [list(p) for p in data["steering_ratio"]]
     return {key: data[key] for key in FILE_FIELDS}
