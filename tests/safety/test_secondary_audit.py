@@ -11,7 +11,7 @@ from collections.abc import Callable
 import msgspec
 import pytest
 
-from overdrive.dynamics.secondary_braking import secondary_stop_m
+from overdrive.dynamics.secondary_braking import secondary_gear, secondary_stop_m
 from overdrive.messages import SIM_FAULTS_TOPIC, Notice, PowertrainCommand, Topic, Truth
 from overdrive.observe.judge import Monitor
 from overdrive.observe.secondary_audit import (
@@ -35,7 +35,7 @@ def complete(preset: str) -> Policy:
     """What the speed server does: the secondary gear, the engine kept while moving (cut at
     rest), the parking brake."""
     p = PRESETS[preset]
-    low = "low" if preset == "escape-hybrid" else p.drive_gear
+    low = secondary_gear(p, p.gear(p.drive_gear), 8.0).name   # the hardest-braking gear at 8 m/s
 
     def policy(t_s: float, speed_mps: float) -> PowertrainCommand:
         return PowertrainCommand(gear=low if t_s > 0.0 else p.drive_gear,

@@ -20,6 +20,8 @@ from typing import Any
 
 import msgspec
 
+from overdrive.dynamics.steering_ratio import SteeringRatioError, check_steering_ratio
+
 G_MPS2 = 9.80665  # standard gravity
 AIR_DENSITY_KGPM3 = 1.225  # ISA sea level: the drag model of the plant, the loops and the judge
 DRY_MU = 0.9  # friction the preset's braking and skid-pad figures were measured on
@@ -71,6 +73,9 @@ class VehicleParams(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
     max_steer_rad: float = 0.5          # road-wheel angle at full lock
     steer_rate_rps: float = 0.6         # road-wheel angle rate limit of the steering actuator
     steer_lag_s: float = 0.05
+    # steering-wheel angle / road-wheel angle (dynamics.steering_ratio): a number, a table
+    # [[wheel_rad, ratio], ...] (variable), or None (not stated: steered by road-wheel effort)
+    steering_ratio: float | tuple[tuple[float, float], ...] | None = None
     # envelope (seed 003)
     skidpad_lat_g: float = 0.8          # lateral g on the skid pad
     stopping_distance_60mph_m: float = 40.0  # 60-0 mph stopping distance (26.82 m/s)
@@ -277,8 +282,12 @@ to do so)"); docs/drive-your-own-vehicle.md, "Safety devices", justifies the def
 CHOICES: dict[str, dict[str, str]] = {"estop_engine_cut": ESTOP_ENGINE_CUTS}
 """Parameters that take one of a few names."""
 
+STEERING_RATIO = "steering_ratio"
+"""A number or a table, checked by ``dynamics.steering_ratio.check_steering_ratio``; None (not
+stated) by default: only a kit steering by the steering wheel (PACMod 3) needs it."""
+
 OPTIONAL_IN_FILE = frozenset({"start_failures", "start_failure_prob", *SENSOR_CHECKS,
-                              *SECONDARY_BRAKING, *SAFETY_DEVICES})
+                              *SECONDARY_BRAKING, *SAFETY_DEVICES, STEERING_RATIO})
 """Simulation knobs (failed crank attempts, 0 unless stated), the sensor cross-checks'
 thresholds, the parking brake and the safety devices (defaults unless stated): every other field
 is required."""
@@ -359,6 +368,17 @@ def _check_name(field: str, value: Any) -> None:
                                       f"(at most 64 characters), got {_show(value)}")
 
 
+def _check_field(key: str, value: Any) -> None:
+    """One parameter's value: the steering ratio by its own rules, the rest by type and range."""
+    if key == STEERING_RATIO:
+        try:
+            check_steering_ratio(value)
+        except SteeringRatioError as e:
+            raise VehicleSpecError(key, str(e)) from None
+    else:
+        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+
+
 def _check_roles(params: VehicleParams) -> None:
     """Each gear role names a gear of the vehicle, one that moves the way the role needs."""
     by_name = {g.name: g for g in params.gears}
@@ -416,7 +436,7 @@ def with_overrides(base: VehicleParams, overrides: Mapping[Any, Any]) -> Vehicle
         if key not in PARAMETERS:
             raise VehicleSpecError(str(key), "not a vehicle parameter"
                                              + did_you_mean(str(key), PARAMETERS))
-        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+        _check_field(key, value)
     merged = msgspec.to_builtins(base)
     merged.update(overrides)
     params = msgspec.convert(merged, VehicleParams)
@@ -446,7 +466,7 @@ def vehicle_from_data(data: Any) -> VehicleParams:
     _check_name("name", data["name"])
     values = {k: data[k] for k in PARAMETERS if k in data}
     for key, value in values.items():
-        _check_value(key, value, _FIELD_TYPES[key], PLAUSIBLE_RANGES.get(key))
+        _check_field(key, value)
     if (values.get("park_brake_decel_mps2", 0.0) > 0.0
             and values.get("park_brake_max_apply_mps", 0.0) > 0.0
             and "park_brake_apply_s" not in values):
