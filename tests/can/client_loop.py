@@ -9,12 +9,12 @@ from overdrive.vehicle.pacmod3_client import Pacmod3Client, Pacmod3ClientConfig
 from tests.can.pacmod3_double import KitDouble
 
 PERIOD_S = 0.01
-CONSTANT = [[0.0, 16.0]]
+CONSTANT = 16.0
 VARIABLE = [[0.0, 16.0], [3.0, 14.0], [8.0, 13.0]]
 
 
 def vehicle(ratio=None):
-    return with_overrides(PRESETS["escape-hybrid"], {"steering_ratio": ratio or CONSTANT})
+    return with_overrides(PRESETS["escape-hybrid"], {"steering_ratio": CONSTANT if ratio is None else ratio})
 
 
 class Loop:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from overdrive.dynamics.vehicle_params import road_wheel_rad
+from overdrive.dynamics.steering_ratio import road_wheel_rad
 from overdrive.kits.frames import CanFrame
 from overdrive.kits.pacmod3 import (
     AccelCmd,

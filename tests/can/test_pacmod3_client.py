@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from overdrive.dynamics.vehicle_params import road_wheel_rad
+from overdrive.dynamics.steering_ratio import road_wheel_rad
 from overdrive.kits.frames import CanFrame
 from overdrive.kits.pacmod3 import (
     AccelCmd,

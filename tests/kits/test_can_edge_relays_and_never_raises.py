@@ -10,9 +10,9 @@ import itertools
 import socket
 import time
 
-import can
 import pytest
 
+import can
 from overdrive.kits.frames import CanFrame
 from overdrive.runtime.can_edge import (
     MIN_FRAME_GAP_S,

@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import can
-
 from overdrive.kits.frames import KitDecodeError, KitError, UnknownFrame
 from overdrive.kits.pacmod3 import Dialect, Pacmod3Codec
 from overdrive.runtime.can_edge import CanConfig, CanConfigError, CanPort, resolve_can_config

@@ -20,9 +20,9 @@ import time
 from collections.abc import Sequence
 from typing import Any, Final
 
-import can
 import msgspec
 
+import can
 from overdrive.kits.frames import CanFrame, KitDecodeError
 from overdrive.messages import CanFrameRecord, CanTraffic
 

@@ -43,12 +43,8 @@ from typing import Any, Final, Literal
 import msgspec
 
 from overdrive.dynamics.control import first_order_lag
-from overdrive.dynamics.vehicle_params import (
-    G_MPS2,
-    VehicleParams,
-    road_wheel_rad,
-    steering_wheel_rad,
-)
+from overdrive.dynamics.steering_ratio import road_wheel_rad, steering_wheel_rad
+from overdrive.dynamics.vehicle_params import G_MPS2, VehicleParams
 from overdrive.kits.frames import CanFrame, KitError, UnknownFrame
 from overdrive.kits.pacmod3 import (
     STEERING_RATE_MAX_RADPS,
@@ -181,7 +177,7 @@ class Pacmod3Client:
 
     def __init__(self, params: VehicleParams, config: Pacmod3ClientConfig | None = None,
                  codec: Pacmod3Codec | None = None, name: str = "pacmod3-client") -> None:
-        if not params.steering_ratio:
+        if params.steering_ratio is None:
             raise ValueError(f"vehicle {params.preset}: no steering_ratio; a PACMod 3 commands "
                              f"the steering wheel's angle, so the vehicle file must state it")
         self.params = params
@@ -197,7 +193,8 @@ class Pacmod3Client:
         if neutral:
             self.name_of[Gear.NEUTRAL] = neutral[0]
         self.systems = WORKFLOW_SYSTEMS[cfg.bring_up]
-        max_ratio = max(r for _, r in params.steering_ratio)
+        ratio = params.steering_ratio
+        max_ratio = ratio if isinstance(ratio, float) else max(r for _, r in ratio)
         self.wheel_rate_radps = min(params.steer_rate_rps * max_ratio, STEERING_RATE_MAX_RADPS)
         if cfg.bring_up is not None:
             self.wheel_rate_radps = min(self.wheel_rate_radps, BRING_UP_STEERING_RATE_RADPS)
