@@ -9,13 +9,14 @@ from __future__ import annotations
 import contextlib
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 import msgspec
 
 from overdrive import __version__
 from overdrive.cli.bus import echo, launch, node, pub
-from overdrive.cli.can import can_hub, can_monitor
+from overdrive.cli.can import can_hub, can_monitor, can_options, resolve_from_flags
 from overdrive.cli.jaus import jaus
 from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
@@ -237,8 +238,10 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
 
 
 @main.command()
-@click.option("--xgv", "xgv", required=True, metavar="HOST[:PORT]",
-              help="The XGV's address (port 3794 by default).")
+@click.option("--xgv", "xgv", metavar="HOST[:PORT]",
+              help="The XGV's address (port 3794 by default); or --can.")
+@click.option("--can", "can_kit", type=click.Choice(["pacmod3"]),
+              help="A CAN drive-by-wire kit instead of an XGV (docs/pacmod3-stack.md).")
 @click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--bind", default="0.0.0.0:0", show_default=True, metavar="HOST:PORT",
               help="Local address; a real XGV answers on port 3794: use 0.0.0.0:3794.")
@@ -249,15 +252,41 @@ def xgv_sim(host: str, port: int, scenario: Path | None, duration_s: float | Non
               help="The vehicle's JAUS profile: xgv (a ByWire XGV or xgv-sim) or plain (a JAUS "
                    "3.3 vehicle without the XGV's reports, e.g. OpenJAUS's ojVehicleSim: "
                    "needs control: wrench and start: ready).")
-def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool,
-          profile: str) -> None:
-    """Run the control stack against a real or simulated XGV over JAUS, in wall-clock time."""
+@click.option("--vehicle", "vehicle_file", type=click.Path(dir_okay=False, path_type=Path),
+              help="--can: the vehicle file (default: the Lexus RX 450h, lexus-rx450h).")
+@click.option("--engage", is_flag=True,
+              help="--can: engage at start (the operator's act); without it the drive waits "
+                   "disengaged for `overdrive engage --run RUN_DIR`.")
+@click.option("--dialect", type=click.Choice(["v3", "v14"]), default="v3", show_default=True,
+              help="--can pacmod3: v3 (the shipped DBC) or v14 (GLOBAL_CMD, supervisory).")
+@click.option("--dbc", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="--can pacmod3: your own DBC instead of the shipped one.")
+@click.option("--bring-up", "bring_up", type=click.Choice(["throttle", "brake", "steering"]),
+              help="--can: enable one axis (with the brake) at low caps (docs/drive-your-own-"
+                   "vehicle.md, \"Bring-up over CAN\").")
+@can_options
+def drive(xgv: str | None, can_kit: str | None, scenario: Path, bind: str, out_dir: Path | None,
+          quiet: bool, profile: str, vehicle_file: Path | None, engage: bool, dialect: str,
+          dbc: Path | None, bring_up: str | None, can_interface: str | None,
+          can_channel: str | None, can_bitrate: int | None, can_context: str | None,
+          can_option: tuple[str, ...]) -> None:
+    """Run the control stack against a real or simulated XGV over JAUS, or a CAN drive-by-wire
+    kit (--can pacmod3), in wall-clock time."""
     from overdrive.observe.run_files import OutDirError, make_out_dir
     from overdrive.run.compose import plain_profile_problem
     from overdrive.run.drive import run_drive
     from overdrive.run.sim import default_out_dir
     from overdrive.scenario.schema import ScenarioError, load_scenario
 
+    if (xgv is None) == (can_kit is None):
+        fail_usage("give one of --xgv HOST[:PORT] or --can pacmod3")
+    if can_kit is not None:
+        _drive_can(scenario, out_dir, quiet, vehicle_file, engage, dialect, dbc, bring_up,
+                   (can_interface, can_channel, can_bitrate, can_context, can_option))
+        return
+    if vehicle_file or engage or bring_up or dbc or dialect != "v3":
+        fail_usage("--vehicle, --engage, --dialect, --dbc and --bring-up go with --can")
+    assert xgv is not None
     remote = _host_port(xgv, 3794, "--xgv", bind=False)
     local = _host_port(bind, 0, "--bind", bind=True)
     try:
@@ -280,6 +309,71 @@ def drive(xgv: str, scenario: Path, bind: str, out_dir: Path | None, quiet: bool
     else:
         print_summary(result.summary, out)
     raise SystemExit(result.exit_code)
+
+
+def _drive_can(scenario: Path, out_dir: Path | None, quiet: bool, vehicle_file: Path | None,
+               engage: bool, dialect: str, dbc: Path | None, bring_up: str | None,
+               flags: tuple[Any, ...]) -> None:
+    """``overdrive drive --can pacmod3``: resolve the bus the python-can way, print it, run."""
+    from overdrive.kits.frames import KitError
+    from overdrive.observe.run_files import OutDirError, make_out_dir
+    from overdrive.run.drive_can import run_drive_can
+    from overdrive.run.sim import default_out_dir
+    from overdrive.runtime.can_edge import CanConfigError
+    from overdrive.scenario.schema import ScenarioError, load_scenario
+    from overdrive.scenario.vehicles import read_vehicle_file
+
+    config = resolve_from_flags(*flags)
+    click.echo("CAN: " + config.describe().replace("\n", "; "), err=True)
+    try:
+        loaded = load_scenario(scenario)
+        vehicle = read_vehicle_file(vehicle_file) if vehicle_file is not None else None
+        out = make_out_dir(out_dir or default_out_dir(loaded))
+        click.echo(f"run folder: {out} (overdrive engage --run {out})", err=True)
+        result = run_drive_can(loaded, config, out, vehicle=vehicle,
+                               dialect="v14" if dialect == "v14" else "v3", dbc=dbc,
+                               engage=engage, bring_up=bring_up,  # type: ignore[arg-type]
+                               display=lambda line: click.echo(line, err=True))
+    except (ScenarioError, OutDirError, KitError, ValueError) as exc:
+        fail_usage(str(exc))
+        return
+    except CanConfigError as exc:
+        click.echo(f"error: {exc}", err=True)
+        raise SystemExit(EXIT_VIOLATION) from None
+    if quiet:
+        click.echo(str(out))
+    else:
+        print_summary(result.summary, out)
+    raise SystemExit(result.exit_code)
+
+
+@main.command()
+@click.option("--run", "run_dir", required=True,
+              type=click.Path(file_okay=False, exists=True, path_type=Path),
+              help="The run folder of a running `overdrive drive --can`.")
+@click.option("--status", is_flag=True, help="Only ask the engage state.")
+@click.option("--wait", "wait_s", type=click.FloatRange(0.0, 60.0), default=3.0,
+              show_default=True, help="Wait this long for the kit to report engaged.")
+def engage(run_dir: Path, status: bool, wait_s: float) -> None:
+    """Engage (or re-engage after an override, a timeout or a fault) a running CAN drive: the
+    operator's act. Exit 0 engaged, 1 refused or not engaged in time, 2 no drive there."""
+    import time
+
+    from overdrive.runtime.can_link import request_engage
+
+    try:
+        reply = request_engage(run_dir, "status" if status else "engage")
+        if not status and reply.get("ok"):
+            deadline = time.monotonic() + wait_s
+            while reply.get("state") != "engaged" and time.monotonic() < deadline:
+                time.sleep(0.1)
+                reply = request_engage(run_dir, "status")
+    except (OSError, ValueError) as exc:
+        fail_usage(f"{run_dir}: {exc}")
+        return
+    click.echo(f"state: {reply.get('state')}" + (f" (refused: {reply['reason']})"
+                                                  if reply.get("reason") else ""))
+    raise SystemExit(EXIT_OK if status or reply.get("state") == "engaged" else EXIT_VIOLATION)
 
 
 @main.command()

@@ -331,6 +331,11 @@ class Pacmod3Client:
     def _heard(self) -> bool:
         return all(k in self.seen_s for k in _REQUIRED)
 
+    @property
+    def heard(self) -> bool:
+        """Every required report arrived at least once: the kit is there."""
+        return self._heard()
+
     def _silent(self, now_s: float) -> str | None:
         """The first required report silent too long (once every one was heard)."""
         if not self._heard():
@@ -458,6 +463,17 @@ class Pacmod3Client:
         self.stats.frames_out += len(frames)
         return frames
 
+    def release_frames(self) -> list[CanFrame]:
+        """One frame per system with ``enable=0`` (the drive ending hands the kit back; the
+        workflow's state is left as it is)."""
+        gear = self._gear(ENGAGE_BRAKE_RATIO)
+        messages = [BrakeCmd(enable=False, brake_ratio=ENGAGE_BRAKE_RATIO),
+                    AccelCmd(enable=False, accel_ratio=0.0),
+                    SteeringCmd(enable=False, position_rad=0.0,
+                                rotation_rate_radps=self.wheel_rate_radps),
+                    ShiftCmd(enable=False, gear=gear)]
+        return [self.codec.encode(m) for m in messages]
+
     def _enable(self, now_s: float) -> dict[str, bool]:
         """``enable`` per system for this frame, recording each system's edge."""
         enable = dict.fromkeys(SYSTEMS, False)
@@ -558,7 +574,7 @@ class Pacmod3Client:
         if why is None:
             self.shift_refusal = None
             return wanted
-        if why != self.shift_refusal:
+        if why != self.shift_refusal and self.state == "engaged":   # disabled: SHIFT idle
             self.shift_refusal = why
             self.stats.shifts_refused += 1
             self.notices.append(Notice(kind="rejected", source=self.name, code="shift_refused",
