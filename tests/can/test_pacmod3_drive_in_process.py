@@ -21,18 +21,18 @@ from tests.can.kit_thread import KitThread
 pytestmark = pytest.mark.wallclock
 
 
-def scenario(tmp_path: Path, name: str, move: dict, duration_s: float):
+def scenario(tmp_path: Path, name: str, move: dict, duration_s: float, extra=()):
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump({
         "name": name, "start": "ready", "seed": 1, "duration_s": duration_s,
-        "events": [{"at_s": 1.5, "move": move}]}), encoding="utf-8")
+        "events": [{"at_s": 1.5, "move": move}, *extra]}), encoding="utf-8")
     return load_scenario(path)
 
 
-def drive(tmp_path: Path, channel: str, move: dict, duration_s: float, **options):
+def drive(tmp_path: Path, channel: str, move: dict, duration_s: float, extra=(), **options):
     params = PRESETS[DEFAULT_VEHICLE]
     with KitThread(params, channel) as kit:
-        result = run_drive_can(scenario(tmp_path, channel, move, duration_s),
+        result = run_drive_can(scenario(tmp_path, channel, move, duration_s, extra),
                                resolve_can_config(interface="virtual", channel=channel),
                                tmp_path / "run", plot=False, **options)
         truth = kit.truth()
@@ -72,3 +72,17 @@ def test_a_curve_turns_the_way_asked(tmp_path, curvature) -> None:
     assert truth.odometer_m > 6.0
     # curvature positive turns right: heading clockwise (negative), y to the right (negative)
     assert math.copysign(1.0, truth.heading_rad) == -math.copysign(1.0, curvature)
+
+
+@pytest.mark.parametrize("node", ["move", "driving"])
+def test_a_silent_planner_brakes_to_a_stop_and_the_kit_stays_engaged(tmp_path, node) -> None:
+    result, kit, truth = drive(tmp_path, f"e2e-silent-{node}", {
+        "distance_m": 40, "maxspeed_mps": 3, "curvature_1pm": 0}, 16.0,
+        extra=[{"at_s": 9.0, "stall": {"node": node, "for_s": 6.9}}], engage=True)
+    moving = [t for t in kit.truths if 8.5 <= t.t_s <= 9.0]
+    assert moving and moving[-1].speed_mps > 1.0, "moving when the planner went quiet"
+    # the kit's state up to the drive's end (its close hands the kit back: enable=0)
+    engaged = [t for t in kit.truths if set(t.enabled) == {"accel", "brake", "steering", "shift"}]
+    assert engaged[-1].t_s >= truth.t_s - 0.1, "engaged to the end of the drive"
+    assert engaged[-1].odometer_m < 30.0, "stopped short of the MOVE's end"
+    assert abs(engaged[-1].speed_mps) < 0.05
