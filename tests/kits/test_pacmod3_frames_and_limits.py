@@ -242,6 +242,7 @@ def test_report_floats_not_finite_are_refused():
     (0x204, "01000003E9000000", "COMMANDED_VALUE"),
     (0x228, "0108000000000000", "MANUAL_INPUT"),       # gear 8
     (0x228, "0100050000000000", "COMMANDED_VALUE"),    # a command cannot be between gears
+    (0x12C, "0180000000000000", "position -32.768"),   # in the DBC range, not in +-32.767
 ])
 def test_a_report_or_command_frame_outside_its_dbc_range_is_refused(can_id, hex_data, signal):
     with pytest.raises(KitDecodeError, match=signal):

@@ -420,9 +420,13 @@ class Pacmod3Codec:
         kwargs = {field: convert(signals[signal])
                   for field, signal, convert in self._converters[m.cls]}
         try:
-            return m.cls(**kwargs)
-        except ValueError as e:   # a gear the enum does not have
+            msg = m.cls(**kwargs)
+            # a command frame must hold what a command may carry: the encoder's own ranges
+            # (position -32.768 rad is in the DBC's range but not in the symmetric +-32.767)
+            _check_command(msg, m.message)
+        except ValueError as e:   # a gear the enum does not have; KitEncodeError
             raise KitDecodeError(f"{m.message}: {e}") from e
+        return msg
 
 
 def _limits(signal: Any) -> tuple[str, float, float, frozenset[int]]:
