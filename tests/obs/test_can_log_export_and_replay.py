@@ -143,6 +143,9 @@ def test_a_run_without_can_frames_is_refused_and_nothing_is_written(tmp_path):
     (tmp_path / "junk" / "run.mcap").write_bytes(b"not an mcap file at all")
     with pytest.raises(CanLogError, match=r"not a readable run\.mcap"):
         export_can_log(tmp_path / "junk", tmp_path / "x.log", "candump")
+    write_run(tmp_path / "run", sample_frames())
+    with pytest.raises(CanLogError, match="cannot write"):
+        export_can_log(tmp_path / "run", tmp_path / "run", "candump")   # a folder
 
 
 def test_replay_decodes_what_it_can_and_counts_unknown_and_malformed_frames(tmp_path):

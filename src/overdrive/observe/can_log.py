@@ -88,9 +88,12 @@ def export_can_log(run: str | Path, out: str | Path, fmt: CanLogFormat) -> int:
         raise CanLogError(f"{run_mcap_path(run)}: no CAN frames recorded "
                           f"(no {Topic.CAN_FRAMES} channel)")
     writer_cls = can.CanutilsLogWriter if fmt == "candump" else can.ASCWriter
-    with writer_cls(str(out)) as writer:
-        for channel, record in frames:
-            writer.on_message_received(to_can_message(channel, record))
+    try:
+        with writer_cls(str(out)) as writer:
+            for channel, record in frames:
+                writer.on_message_received(to_can_message(channel, record))
+    except OSError as e:
+        raise CanLogError(f"{out}: cannot write: {e.strerror or e}") from e
     return len(frames)
 
 
