@@ -7,6 +7,7 @@ with the right error."""
 
 from __future__ import annotations
 
+import hashlib
 import math
 import shutil
 from pathlib import Path
@@ -18,6 +19,7 @@ from overdrive.kits.frames import CanFrame, KitDecodeError, KitEncodeError, KitE
 from overdrive.kits.pacmod3 import (
     SHIPPED_DBC,
     SHIPPED_DBC_SHA256,
+    V14_GLOBAL_DBC,
     AccelCmd,
     AccelRpt,
     BrakeCmd,
@@ -309,6 +311,20 @@ def test_signals_a_dialect_lacks_decode_false_and_cannot_be_sent_set():
 def test_the_shipped_dbc_is_the_one_named_by_its_hash():
     assert V3.dbc_sha256 == SHIPPED_DBC_SHA256
     assert V3.dbc_path == SHIPPED_DBC
+    assert V3.dbc_files == ((str(SHIPPED_DBC), SHIPPED_DBC_SHA256),)
+    fragment = hashlib.sha256(V14_GLOBAL_DBC.read_bytes()).hexdigest()
+    assert V14.dbc_files == ((str(SHIPPED_DBC), SHIPPED_DBC_SHA256), (str(V14_GLOBAL_DBC), fragment))
+
+
+@pytest.mark.parametrize("rate_radps", [0.001, 0.1, 0.3, 1.1, 3.3, 7.77, 65.535])
+def test_decoded_values_read_as_the_decimals_they_were_sent_with(rate_radps):
+    """raw 3300 at 0.001 rad/s is 3.3, not 3300 * 0.001 = 3.3000000000000003."""
+    sent = SteeringCmd(enable=True, position_rad=-rate_radps / 3, rotation_rate_radps=rate_radps)
+    got = V3.decode(V3.encode(sent))
+    assert got.rotation_rate_radps == rate_radps
+    assert got.position_rad == round(-rate_radps / 3, 3)
+    speed = V3.decode(V3.encode(VehicleSpeedRpt(speed_mps=rate_radps, valid=True))).speed_mps
+    assert speed == round(rate_radps, 2)
 
 
 def test_a_user_dbc_missing_a_signal_is_refused_at_load(tmp_path: Path):

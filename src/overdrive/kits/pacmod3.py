@@ -312,12 +312,15 @@ class Pacmod3Codec:
             raise KitError(f"{self.dbc_path}: cannot read as a DBC: {e}") from e
         self.dbc_sha256 = _sha256(self.dbc_path)
         self.dbc_version = db.version or self.dbc_path.stem
+        self.dbc_files: tuple[tuple[str, str], ...] = ((str(self.dbc_path), self.dbc_sha256),)
+        """Every DBC file read, ``(path, sha256)``: the v14 fragment too, for the run folder."""
         maps = list(_MAPS)
         sources = [(m, db) for m in maps]
         if dialect == "v14":
             # A user's v14 DBC defines every message itself; with the shipped v3.4.0 DBC, the
             # fragment supplies the messages added or changed since (and GLOBAL_RPT's new bit).
             ext = cantools.database.load_file(str(V14_GLOBAL_DBC), strict=True)
+            self.dbc_files += ((str(V14_GLOBAL_DBC), _sha256(V14_GLOBAL_DBC)),)
             own = {x.name for x in db.messages} if self.dbc_path != SHIPPED_DBC else set()
             ext_names = {x.name for x in ext.messages}
             v14 = [*(m for m in maps if m.message != "GLOBAL_RPT"), *_V14_MAPS]
@@ -326,7 +329,7 @@ class Pacmod3Codec:
         self._by_type: dict[type, tuple[_Map, Any]] = {}
         self._by_id: dict[int, tuple[_Map, Any]] = {}
         self._fields: dict[type, tuple[tuple[str, str], ...]] = {}
-        self._converters: dict[type, tuple[tuple[str, str, Any], ...]] = {}
+        self._converters: dict[type, tuple[tuple[str, str, Any, int | None], ...]] = {}
         self._limits: dict[type, tuple[tuple[str, float, float, frozenset[int]], ...]] = {}
         for m, source in sources:
             try:
@@ -343,8 +346,11 @@ class Pacmod3Codec:
             fields = tuple((f, sig) for f, sig in m.fields if sig in names)
             self._fields[m.cls] = fields
             types = {f.name: f.type for f in msgspec.structs.fields(m.cls)}
-            self._converters[m.cls] = tuple((field, signal, types[field])
-                                            for field, signal in fields)
+            self._converters[m.cls] = tuple(
+                (field, signal, types[field],
+                 _decimals(message.get_signal_by_name(signal).scale) if types[field] is float
+                 else None)
+                for field, signal in fields)
             self._limits[m.cls] = tuple(_limits(message.get_signal_by_name(signal))
                                         for _, signal in fields)
 
@@ -417,8 +423,9 @@ class Pacmod3Codec:
             if not low <= value <= high and value not in choices:
                 raise KitDecodeError(f"{m.message}.{signal}: {value} outside the DBC's range "
                                      f"[{low:g}|{high:g}]")
-        kwargs = {field: convert(signals[signal])
-                  for field, signal, convert in self._converters[m.cls]}
+        kwargs = {field: convert(signals[signal] if digits is None
+                                 else round(signals[signal], digits))
+                  for field, signal, convert, digits in self._converters[m.cls]}
         try:
             msg = m.cls(**kwargs)
             # a command frame must hold what a command may carry: the encoder's own ranges
@@ -427,6 +434,15 @@ class Pacmod3Codec:
         except ValueError as e:   # a gear the enum does not have; KitEncodeError
             raise KitDecodeError(f"{m.message}: {e}") from e
         return msg
+
+
+def _decimals(scale: float) -> int | None:
+    """Decimal places of a power-of-ten scale (0.001 -> 3): a decoded value is rounded to them,
+    so raw 3300 at 0.001 reads 3.3, not 3300 * 0.001 = 3.3000000000000003. None otherwise."""
+    if not 0 < scale < 1:
+        return None
+    digits = round(-math.log10(scale))
+    return digits if math.isclose(10.0 ** -digits, scale) else None
 
 
 def _limits(signal: Any) -> tuple[str, float, float, frozenset[int]]:
