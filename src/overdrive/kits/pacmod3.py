@@ -330,7 +330,7 @@ class Pacmod3Codec:
         self._by_id: dict[int, tuple[_Map, Any]] = {}
         self._fields: dict[type, tuple[tuple[str, str], ...]] = {}
         self._converters: dict[type, tuple[tuple[str, str, Any, int | None], ...]] = {}
-        self._limits: dict[type, tuple[tuple[str, float, float, frozenset[int]], ...]] = {}
+        self._limits: dict[type, tuple[tuple[str, float, float, frozenset[int], str], ...]] = {}
         for m, source in sources:
             try:
                 message = source.get_message_by_name(m.message)
@@ -418,11 +418,11 @@ class Pacmod3Codec:
         if m.message in _COUNTED and signals["COMPLEMENT"] != complement4(signals["COUNTER"]):
             raise KitDecodeError(f"{m.message}: complement {signals['COMPLEMENT']} does not "
                                  f"match counter {signals['COUNTER']}")
-        for signal, low, high, choices in self._limits[m.cls]:
+        for signal, low, high, choices, stated in self._limits[m.cls]:
             value = signals[signal]
             if not low <= value <= high and value not in choices:
-                raise KitDecodeError(f"{m.message}.{signal}: {value} outside the DBC's range "
-                                     f"[{low:g}|{high:g}]")
+                raise KitDecodeError(f"{m.message}.{signal}: {value:g} outside the DBC's range "
+                                     f"{stated}")
         kwargs = {field: convert(signals[signal] if digits is None
                                  else round(signals[signal], digits))
                   for field, signal, convert, digits in self._converters[m.cls]}
@@ -445,13 +445,14 @@ def _decimals(scale: float) -> int | None:
     return digits if math.isclose(10.0 ** -digits, scale) else None
 
 
-def _limits(signal: Any) -> tuple[str, float, float, frozenset[int]]:
-    """A signal's DBC range, widened by half a step (the scaled raw values at its ends), and
-    the values its ``VAL_`` table names."""
+def _limits(signal: Any) -> tuple[str, float, float, frozenset[int], str]:
+    """A signal's DBC range, widened by half a step (the scaled raw values at its ends), the
+    values its ``VAL_`` table names, and the range as the DBC states it (for errors)."""
     half_step = abs(signal.scale) / 2
     low = -math.inf if signal.minimum is None else signal.minimum - half_step
     high = math.inf if signal.maximum is None else signal.maximum + half_step
-    return signal.name, low, high, frozenset(signal.choices or ())
+    return (signal.name, low, high, frozenset(signal.choices or ()),
+            f"[{signal.minimum}|{signal.maximum}]")
 
 
 def _check_command(msg: Any, name: str) -> None:
