@@ -206,3 +206,47 @@ def test_a_valid_v14_global_frame_round_trips_exactly(counter, enable, bits):
                           data=L.pack_supervisory_ctrl(int(enable), counter,
                                                        complement4(counter)))):
         assert V14.encode(V14.decode(sent)) == sent
+
+
+def _raw_v14_frames():
+    """Valid v14 frames built by pacmod12.c's layout by hand: the shorter frames, the status
+    byte's COMMAND_TIMEOUT (bit 7), the signed front-left wheel speed, no CLEAR_FAULTS."""
+    bit = st.integers(0, 1)
+    bits8 = st.tuples(*[bit] * 8)
+    flags3 = st.tuples(bit, bit, bit).map(lambda f: (*f, 0))
+    pedal = st.integers(0, 1000)
+    s16 = st.integers(-32767, 32767)
+    gear = st.sampled_from([0, 1, 2, 3, 4, 7])
+    return st.one_of(
+        st.builds(lambda f, r: (L.ACCEL_CMD_ID, L.pack_pedal_cmd(*f, r, length=3)), flags3, pedal),
+        st.builds(lambda f, r: (L.BRAKE_CMD_ID, L.pack_pedal_cmd(*f, r, length=3)), flags3, pedal),
+        st.builds(lambda f, p, r: (L.STEERING_CMD_ID, L.pack_steering_cmd(*f, p, r, length=5)),
+                  flags3, s16, st.integers(0, 65535)),
+        st.builds(lambda f, g: (L.SHIFT_CMD_ID, L.pack_shift_cmd(*f, g, length=2)), flags3, gear),
+        st.builds(lambda b, c, e, s: (L.GLOBAL_RPT_ID, L.pack_global_rpt(b, c, e, s)),
+                  bits8, bit, st.integers(0, 65535), bit),
+        st.builds(lambda b, m, c, o: (L.BRAKE_RPT_ID, L.pack_system_rpt(b, m, c, o)),
+                  bits8, pedal, pedal, pedal),
+        st.builds(lambda b, m, c, o: (L.STEERING_RPT_ID, L.pack_system_rpt(b, m, c, o)),
+                  bits8, s16, s16, s16),
+        st.builds(lambda b, m, c, o: (L.SHIFT_RPT_ID, L.pack_shift_rpt(b, m, c, o, length=4)),
+                  bits8, st.integers(0, 7), gear, st.integers(0, 7)),
+        st.builds(lambda s, v: (L.VEHICLE_SPEED_RPT_ID, L.pack_vehicle_speed_rpt(s, v, length=3)),
+                  s16, bit),
+        st.builds(lambda a, b, c, d: (L.WHEEL_SPEED_RPT_ID, L.pack_wheel_speed_rpt(a, b, c, d)),
+                  s16, s16, s16, s16),
+        st.builds(lambda y: (L.YAW_RATE_RPT_ID, L.pack_yaw_rate_rpt(y, length=2)), s16),
+    )
+
+
+@settings(max_examples=300, deadline=None)
+@given(raw=_raw_v14_frames())
+def test_a_valid_v14_frame_round_trips_exactly(raw):
+    can_id, data = raw
+    sent = CanFrame(arbitration_id=can_id, data=data)
+    got = V14.decode(sent)
+    assert V14.encode(got) == sent
+    if can_id == L.WHEEL_SPEED_RPT_ID:   # signed in DBC 12, all four
+        assert got.front_left_radps == L.s16(data, 0) / 100
+    if can_id in (L.BRAKE_RPT_ID, L.STEERING_RPT_ID, L.SHIFT_RPT_ID):
+        assert got.command_timeout == bool(data[0] & 0x80)
