@@ -17,6 +17,7 @@ import msgspec
 from overdrive import __version__
 from overdrive.cli.bus import echo, launch, node, pub
 from overdrive.cli.can import can_hub, can_monitor, can_options, resolve_from_flags
+from overdrive.cli.can_log import can_log
 from overdrive.cli.jaus import jaus
 from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
@@ -390,7 +391,8 @@ def bench() -> None:
 
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
-    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor):
+    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor,
+                    can_log):
         main.add_command(command)
 
 
