@@ -3,6 +3,7 @@ process (the drive runs in the main thread): the in-process end-to-end rig."""
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 
@@ -39,10 +40,8 @@ class KitThread:
             with self.lock:
                 for _, frame in self.port.receive(0.0, now_s):
                     self.kit.receive(frame, now_s)
-                    try:
+                    with contextlib.suppress(ValueError):
                         self.received.append((now_s, self.kit.codec.decode(frame)))
-                    except ValueError:
-                        pass
                 self.kit.step(now_s)
                 self.port.send(self.kit.report_frames(now_s), now_s)
                 self.port.traffic()    # not kept

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import stat
 from pathlib import Path
 
 import pytest
@@ -59,7 +58,7 @@ def test_a_10_m_move_ends_within_0_2_m_by_the_kit_and_engages_brake_first(tmp_pa
 
 
 def test_without_engage_the_kit_stays_disabled_and_nothing_moves(tmp_path) -> None:
-    result, kit, truth = drive(tmp_path, "e2e-wait", {"distance_m": 10, "maxspeed_mps": 3,
+    _, kit, truth = drive(tmp_path, "e2e-wait", {"distance_m": 10, "maxspeed_mps": 3,
                                                       "curvature_1pm": 0}, 4.0)
     assert truth.odometer_m == 0.0 and truth.enabled == ()
     assert not any(getattr(m, "enable", False) for _, m in kit.received)
@@ -67,7 +66,7 @@ def test_without_engage_the_kit_stays_disabled_and_nothing_moves(tmp_path) -> No
 
 @pytest.mark.parametrize("curvature", [0.05, -0.05])
 def test_a_curve_turns_the_way_asked(tmp_path, curvature) -> None:
-    result, kit, truth = drive(tmp_path, f"e2e-curve{curvature}", {
+    _, _, truth = drive(tmp_path, f"e2e-curve{curvature}", {
         "distance_m": 8, "maxspeed_mps": 2.5, "curvature_1pm": curvature}, 16.0, engage=True)
     assert truth.odometer_m > 6.0
     # curvature positive turns right: heading clockwise (negative), y to the right (negative)
@@ -76,7 +75,7 @@ def test_a_curve_turns_the_way_asked(tmp_path, curvature) -> None:
 
 @pytest.mark.parametrize("node", ["move", "driving"])
 def test_a_silent_planner_brakes_to_a_stop_and_the_kit_stays_engaged(tmp_path, node) -> None:
-    result, kit, truth = drive(tmp_path, f"e2e-silent-{node}", {
+    _, kit, truth = drive(tmp_path, f"e2e-silent-{node}", {
         "distance_m": 40, "maxspeed_mps": 3, "curvature_1pm": 0}, 16.0,
         extra=[{"at_s": 9.0, "stall": {"node": node, "for_s": 6.9}}], engage=True)
     moving = [t for t in kit.truths if 8.5 <= t.t_s <= 9.0]

@@ -8,10 +8,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import can
 import pytest
 from click.testing import CliRunner
 
+import can
 from overdrive.cli.can_log import can_log
 from overdrive.kits.pacmod3 import (
     AccelCmd,

@@ -316,11 +316,9 @@ def _drive_can(scenario: Path, out_dir: Path | None, quiet: bool, vehicle_file: 
                engage: bool, dialect: str, dbc: Path | None, bring_up: str | None,
                flags: tuple[Any, ...]) -> None:
     """``overdrive drive --can pacmod3``: resolve the bus the python-can way, print it, run."""
-    from overdrive.kits.frames import KitError
     from overdrive.observe.run_files import OutDirError, make_out_dir
-    from overdrive.run.drive_can import run_drive_can
+    from overdrive.run.drive_can import CanConfigError, KitError, run_drive_can
     from overdrive.run.sim import default_out_dir
-    from overdrive.runtime.can_edge import CanConfigError
     from overdrive.scenario.schema import ScenarioError, load_scenario
     from overdrive.scenario.vehicles import read_vehicle_file
 
@@ -360,7 +358,7 @@ def engage(run_dir: Path, status: bool, wait_s: float) -> None:
     operator's act. Exit 0 engaged, 1 refused or not engaged in time, 2 no drive there."""
     import time
 
-    from overdrive.runtime.can_link import request_engage
+    from overdrive.run.drive_can import request_engage
 
     try:
         reply = request_engage(run_dir, "status" if status else "engage")

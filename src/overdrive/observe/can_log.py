@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final, Literal
 
-import can
 import msgspec
 from mcap.reader import make_reader
 
+import can
 from overdrive.kits.frames import CanFrame, KitDecodeError, KitError, UnknownFrame
 from overdrive.kits.pacmod3 import Command, Dialect, Pacmod3Codec, Report
 from overdrive.messages import CanFrameRecord, CanTraffic, Topic

@@ -20,12 +20,18 @@ import msgspec
 import yaml
 
 from overdrive.dynamics.vehicle_params import VehicleParams, vehicle_to_data
+from overdrive.kits.frames import KitError
 from overdrive.kits.pacmod3 import Dialect, Pacmod3Codec
 from overdrive.observe.display import DisplayLines
 from overdrive.run.compose import build_servers
 from overdrive.run.sim import RunResult, run_scenario
-from overdrive.runtime.can_edge import CanConfig, CanPort
-from overdrive.runtime.can_link import CanCommandNode, CanSensorNode, EngageEndpoint
+from overdrive.runtime.can_edge import CanConfig, CanConfigError, CanPort
+from overdrive.runtime.can_link import (
+    CanCommandNode,
+    CanSensorNode,
+    EngageEndpoint,
+    request_engage,
+)
 from overdrive.scenario.schema import Scenario
 from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.pacmod3_client import BringUp, Pacmod3Client, Pacmod3ClientConfig
@@ -94,4 +100,5 @@ def run_drive_can(scenario: Scenario, config: CanConfig, out_dir: str | Path | N
                         observers=[DisplayLines(display)] if display is not None else [])
 
 
-__all__ = ["DEFAULT_VEHICLE", "can_record", "pacmod_vehicle", "run_drive_can"]
+__all__ = ["DEFAULT_VEHICLE", "CanConfigError", "KitError", "can_record", "pacmod_vehicle",
+           "request_engage", "run_drive_can"]

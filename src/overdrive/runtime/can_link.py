@@ -20,7 +20,6 @@ import contextlib
 import json
 import os
 import secrets
-import socket
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
@@ -101,9 +100,8 @@ def request_engage(run_dir: str | Path, act: str = "engage", timeout_s: float = 
     if not (isinstance(info, dict) and info.get("host") == LOOPBACK
             and isinstance(info.get("port"), int) and isinstance(info.get("token"), str)):
         raise ValueError(f"{run_dir}/{ENGAGE_FILE}: not an engage endpoint")
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock = open_udp((LOOPBACK, 0), timeout_s=timeout_s)
     try:
-        sock.settimeout(timeout_s)
         sock.sendto(json.dumps({"token": info["token"], "act": act}).encode(),
                     (LOOPBACK, info["port"]))
         data, _ = sock.recvfrom(4096)
