@@ -41,6 +41,7 @@ from overdrive.scenario.vehicles import PRESETS
 from overdrive.servers import direction_hold
 from overdrive.servers import move as move_server
 from overdrive.servers.speed_table import EVENTS, STATE_TABLE, STATES, mermaid_diagram
+from overdrive.vehicle import pacmod3_engage
 from overdrive.vehicle.modes import SAFETY_MODES, safety_mode
 
 UNITS = (  # longest suffix first
@@ -202,6 +203,15 @@ def state_machines_md() -> str:
             "```mermaid", direction_hold.mermaid_diagram().rstrip(), "```", "",
             "| event | raised when |", "|---|---|"]
     out += [f"| `{e}` | {_cell(why)} |" for e, why in direction_hold.EVENTS.items()]
+    out += ["", "## PACMod 3 engage workflow (issue 32)", "",
+            "`overdrive.vehicle.pacmod3_engage.TRANSITIONS[state][event] -> state`: engaging is "
+            "the operator's act (`drive --can pacmod3 --engage`, `overdrive engage --run "
+            "RUN_DIR`), never the planner's; `overridden`, `timed_out` and `faulted` are "
+            "latched and command every system with `enable=0`. At most one event per command "
+            "frame (`classify_event` picks the most urgent).", "",
+            "```mermaid", pacmod3_engage.mermaid_diagram().rstrip(), "```", "",
+            "| event | raised when |", "|---|---|"]
+    out += [f"| `{e}` | {_cell(why)} |" for e, why in pacmod3_engage.EVENTS.items()]
     modes = _mode_triggers()
     out += ["", "## XGV safety modes (seed 000)", "",
             "`overdrive.vehicle.modes.safety_mode`: the first mode (highest precedence) whose "
