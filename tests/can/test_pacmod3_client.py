@@ -251,7 +251,8 @@ def test_a_shift_goes_out_only_at_a_standstill_with_the_brake_held(speed, brake)
     client.next_send_s = -math.inf
     shifts = [client.codec.decode(f) for f in client.command_frames(loop.now_s)]
     shift = next(m for m in shifts if isinstance(m, ShiftCmd))
-    allowed = abs(speed) <= 0.1 and brake >= ENGAGE_BRAKE_RATIO
+    allowed = abs(speed) <= 0.1 and brake >= ENGAGE_BRAKE_RATIO   # the double's output
+                                                                    # follows the command
     assert shift.gear == (Gear.FORWARD if allowed else Gear.PARK)
     assert (client.stats.shifts_refused == 0) == allowed
 

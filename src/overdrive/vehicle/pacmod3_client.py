@@ -101,6 +101,11 @@ PEDAL_STALE_S: Final = 0.1             # pedal commands older than this (10 of t
                                        # server's periods): the stack is lost, brake to a stop
 STALE_BRAKE_PCT: Final = 100.0         # as the XGV client's command-timeout brake
 GEAR_STANDSTILL_MPS: Final = ENGAGE_STANDSTILL_MPS   # SHIFT_CMD only below this speed
+SHIFT_BRAKE_OUTPUT_MIN: Final = 0.3    # and with the kit reporting the hold commanded and its
+                                       # brake output at least this (the pedal is down; a kit's
+                                       # pedal map shapes the output, 0.496 for 0.6 measured on
+                                       # the emulated kit)
+RATIO_STEP: Final = 0.001              # the pedal ratios' resolution on the wire (DBC)
 BRING_UP_ACCEL_RATIO_MAX: Final = 0.2  # bring-up caps (docs/drive-your-own-vehicle.md):
 BRING_UP_STEERING_RATE_RADPS: Final = 0.5   # a fifth of the pedal, a slow wheel, walking pace
 BRING_UP_SPEED_MPS: Final = 2.0        # above this in bring-up: throttle 0 and the brake held
@@ -565,7 +570,8 @@ class Pacmod3Client:
             return current
         brake_rpt = self.system_rpt.get("brake")
         held = (brake_ratio >= ENGAGE_BRAKE_RATIO and brake_rpt is not None
-                and brake_rpt.output_value >= ENGAGE_BRAKE_RATIO)
+                and brake_rpt.commanded_value >= ENGAGE_BRAKE_RATIO - RATIO_STEP
+                and brake_rpt.output_value >= SHIFT_BRAKE_OUTPUT_MIN)
         why = None
         if not abs(self.speed_mps) <= GEAR_STANDSTILL_MPS:
             why = f"moving at {self.speed_mps:.2f} m/s"
