@@ -5,6 +5,7 @@ interface), judged from the frames the kit took and the kit's own truth (its odo
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import signal
@@ -109,7 +110,7 @@ def test_engage_brake_first_commands_at_30_hz_and_a_10_m_move_ends_within_0_2_m(
     throttle = [c for c in systems if c["cmd"] == "AccelCmd" and c["accel_ratio"] > 0]
     assert throttle and throttle[0]["t"] > last_edge_t, "no throttle before every system enabled"
     brake_t = [c["t"] for c in systems if c["cmd"] == "BrakeCmd"]
-    gaps = [b - a for a, b in zip(brake_t, brake_t[1:], strict=False)]
+    gaps = [b - a for a, b in itertools.pairwise(brake_t)]
     assert max(gaps) < 0.1, f"a gap of {max(gaps):.3f} s reached the kit's timeout"
     assert statistics.median(gaps) == pytest.approx(1 / 30, abs=0.004)
     odometer = truths[-1]["truth"]["odometer_m"]
