@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from mcap.reader import make_reader
 
 from overdrive.kits.pacmod3 import AccelCmd, BrakeCmd
 from overdrive.run.drive_can import DEFAULT_VEHICLE, run_drive_can
@@ -53,7 +54,11 @@ def test_a_10_m_move_ends_within_0_2_m_by_the_kit_and_engages_brake_first(tmp_pa
     can = json.loads((run / "can.json").read_text())
     assert can["dbc"]["sha256"] and can["python_can"]["interface"] == "virtual"
     assert yaml.safe_load((run / "vehicle.yaml").read_text())["name"] == DEFAULT_VEHICLE
-    assert (run / "run.mcap").stat().st_size > 0
+    directions = set()
+    with (run / "run.mcap").open("rb") as f:
+        for _, _, message in make_reader(f).iter_messages(topics=["can/frames"]):
+            directions |= {r["direction"] for r in json.loads(message.data)["frames"]}
+    assert directions == {"rx", "tx"}, "raw frames both ways in run.mcap"
     assert not (run / "engage.json").exists(), "the endpoint goes with the drive"
 
 
