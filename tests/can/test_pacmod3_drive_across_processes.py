@@ -9,7 +9,6 @@ import itertools
 import json
 import os
 import signal
-import statistics
 import subprocess
 import sys
 import time
@@ -112,7 +111,8 @@ def test_engage_brake_first_commands_at_30_hz_and_a_10_m_move_ends_within_0_2_m(
     brake_t = [c["t"] for c in systems if c["cmd"] == "BrakeCmd"]
     gaps = [b - a for a, b in itertools.pairwise(brake_t)]
     assert max(gaps) < 0.1, f"a gap of {max(gaps):.3f} s reached the kit's timeout"
-    assert statistics.median(gaps) == pytest.approx(1 / 30, abs=0.004)
+    rate_hz = (len(brake_t) - 1) / (brake_t[-1] - brake_t[0])   # the kit reads every 10 ms
+    assert rate_hz == pytest.approx(30.0, abs=1.0)
     odometer = truths[-1]["truth"]["odometer_m"]
     assert odometer == pytest.approx(10.0, abs=0.2), err.decode()[-2000:]
     summary = json.loads((r.out / "summary.json").read_text())
