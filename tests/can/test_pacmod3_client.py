@@ -322,3 +322,17 @@ def test_yaw_reports_that_are_not_finite_are_not_taken() -> None:
 def test_bad_client_configurations_are_refused(bad) -> None:
     with pytest.raises(ValueError):
         Pacmod3ClientConfig(**bad)
+
+
+def test_a_global_override_alone_disengages() -> None:
+    loop = Loop()
+    loop.engage()
+    codec = loop.client.codec
+    g = GlobalRpt(enabled=True, override_active=True, usr_can_timeout=False,
+                  str_can_timeout=False, brk_can_timeout=False, subsystem_timeout=False,
+                  veh_can_timeout=False, fault_active=False, config_fault_active=False,
+                  usr_can_read_errors=0)
+    loop.client.receive(codec.encode(g), loop.now_s)
+    loop.client.next_send_s = -math.inf
+    loop.client.command_frames(loop.now_s)
+    assert loop.client.state == "overridden"

@@ -324,9 +324,10 @@ class Pacmod3Client:
         fault_reason = self._fault_reason(now_s)
         override = any(getattr(self.system_rpt.get(s), "override_active", False)
                        and self._after_grace(s, now_s) for s in self.systems)
-        if g is not None and g.override_active and self._after_grace("brake", now_s):
+        every = all(self._after_grace(s, now_s) for s in self.systems)   # GLOBAL_RPT's bits:
+        if g is not None and g.override_active and every:   # once every edge had its grace
             override = True
-        kit_timeout = bool(g is not None and g.usr_can_timeout and self._after_grace("brake", now_s))
+        kit_timeout = bool(g is not None and g.usr_can_timeout and every)
         return Conditions(
             engage_request=self.engage_pending, fault=fault_reason is not None,
             override=override, kit_timeout=kit_timeout, all_enabled=self._all_enabled(now_s),
