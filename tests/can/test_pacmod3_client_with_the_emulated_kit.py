@@ -69,3 +69,30 @@ def test_an_emulated_override_latches_until_the_operator_re_engages() -> None:
     assert client.state == "overridden" and kit.truth(now).enabled == ()
     now = lock_step(client, kit, 1.0, now, hold, engage_at=now + 0.1)
     assert client.state == "engaged" and set(kit.truth(now).enabled) == ALL
+
+
+@pytest.mark.parametrize("dialect", ["v3", "v14"])
+def test_a_kit_fault_latches_and_the_operator_re_engages_once_the_actuator_works(dialect) -> None:
+    params = PRESETS["lexus-rx450h"]
+    kit = Pacmod3Kit(params, dialect=dialect, faults=(
+        KitFault(kind="stuck", system="brake", start_s=2.0, end_s=3.0),))
+    client = Pacmod3Client(params, Pacmod3ClientConfig(dialect=dialect))
+    hold = PedalCommand(throttle_pct=0.0, brake_pct=60.0, source="speed")
+    now = lock_step(client, kit, 2.5, 0.0, hold, engage_at=0.3)
+    assert client.state == "faulted" and "brake" not in kit.truth(now).enabled
+    now = lock_step(client, kit, 1.0, now, hold)            # nothing re-engages by itself
+    assert client.state == "faulted"
+    now = lock_step(client, kit, 1.0, now, hold, engage_at=now + 0.1)   # the stuck ended at 3 s
+    assert client.state == "engaged" and set(kit.truth(now).enabled) == ALL
+
+
+def test_an_engage_while_the_actuator_is_still_stuck_falls_back_to_faulted() -> None:
+    params = PRESETS["lexus-rx450h"]
+    kit = Pacmod3Kit(params, faults=(KitFault(kind="stuck", system="brake", start_s=2.0,
+                                              end_s=30.0),))
+    client = Pacmod3Client(params)
+    hold = PedalCommand(throttle_pct=0.0, brake_pct=60.0, source="speed")
+    now = lock_step(client, kit, 2.5, 0.0, hold, engage_at=0.3)
+    now = lock_step(client, kit, 1.5, now, hold, engage_at=now + 0.1)
+    assert client.state == "faulted" and "brake" not in kit.truth(now).enabled
+    assert [t[2] for t in client.transitions][-2:] == ["engage_request", "fault"]

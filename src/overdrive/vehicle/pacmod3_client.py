@@ -351,7 +351,11 @@ class Pacmod3Client:
                 return key
         return None
 
-    def _fault_reason(self, now_s: float) -> str | None:
+    def _fault_reason(self, now_s: float, *, kit_faults: bool = True) -> str | None:
+        """Why the kit cannot be driven now (None: no fault). The kit's own fault bits
+        (clearable with ``clear_faults``) count unless ``kit_faults`` is False (the operator's
+        engage, whose sequence sends ``clear_faults``), and while engaging only once the edges
+        had their grace (a fault that stays after the clear is a fault again)."""
         silent = self._silent(now_s) or self.silence_seen
         if silent is not None:
             self.silence_seen = silent   # seen between two frames: kept for the workflow
@@ -359,11 +363,14 @@ class Pacmod3Client:
         if self.bus_errors:
             return f"CAN bus error: {self.bus_errors[-1]}"
         g = self.global_rpt
-        if g is not None and (g.fault_active or g.config_fault_active):
-            return "GLOBAL_RPT: " + ("config fault" if g.config_fault_active else "fault active")
+        if g is not None and g.config_fault_active:
+            return "GLOBAL_RPT: config fault (the kit's configuration: not cleared by commands)"
+        every = all(self._after_grace(s, now_s) for s in self.systems)
+        if kit_faults and g is not None and g.fault_active and every:
+            return "GLOBAL_RPT: fault active"
         for s in self.systems:
             r = self.system_rpt.get(s)
-            if r is not None and r.faulted:
+            if kit_faults and r is not None and r.faulted and self._after_grace(s, now_s):
                 return f"{s} report claims a fault"
         shift = self.system_rpt.get("shift")
         if shift is not None and shift.output_value == Gear.ERROR:
@@ -382,7 +389,10 @@ class Pacmod3Client:
         if self._silent(now_s) is None:
             self.silence_seen = None
         self.bus_errors.clear()
-        why = refusal(self.state, self._conditions(now_s))
+        c = self._conditions(now_s)
+        c = msgspec.structs.replace(c, fault=self._fault_reason(now_s, kit_faults=False)
+                                    is not None)
+        why = refusal(self.state, c)
         if why is not None:
             self.stats.engage_refused += 1
             self.notices.append(Notice(kind="rejected", source=self.name, code="engage_refused",
@@ -393,6 +403,9 @@ class Pacmod3Client:
 
     def _step_workflow(self, now_s: float) -> None:
         c = self._conditions(now_s)
+        if self.engage_pending:   # the operator's engage clears the kit's own fault bits
+            c = msgspec.structs.replace(c, fault=self._fault_reason(now_s, kit_faults=False)
+                                        is not None)
         event = classify_event(self.state, c)
         self.engage_pending = False
         if event is None:
@@ -519,17 +532,21 @@ class Pacmod3Client:
                 accel, brake = 0.0, max(brake, ENGAGE_BRAKE_RATIO)
         steer = self._steering(now_s, dt, engaged)
         gear = self._gear(brake)
+        v3_clear = clear and cfg.dialect == "v3"   # v14 clears faults in GLOBAL_CMD
         out: list[Any] = [
-            BrakeCmd(enable=enable["brake"], clear_override=clear, brake_ratio=brake),
-            AccelCmd(enable=enable["accel"], clear_override=clear, accel_ratio=accel),
-            SteeringCmd(enable=enable["steering"], clear_override=clear,
+            BrakeCmd(enable=enable["brake"], clear_override=clear, clear_faults=v3_clear,
+                     brake_ratio=brake),
+            AccelCmd(enable=enable["accel"], clear_override=clear, clear_faults=v3_clear,
+                     accel_ratio=accel),
+            SteeringCmd(enable=enable["steering"], clear_override=clear, clear_faults=v3_clear,
                         position_rad=steer, rotation_rate_radps=self.wheel_rate_radps),
-            ShiftCmd(enable=enable["shift"], clear_override=clear, gear=gear),
+            ShiftCmd(enable=enable["shift"], clear_override=clear, clear_faults=v3_clear,
+                     gear=gear),
         ]
         if cfg.dialect == "v14":
             on = self.state in ("engaging", "engaged")
             out.insert(0, GlobalCmd(counter=self.counter, clear_overrides=clear,
-                                    clear_faults=False))
+                                    clear_faults=clear))
             out.insert(1, SupervisoryCtrl(counter=self.counter, enable=on))
             self.counter = (self.counter + 1) % 16
         return out
