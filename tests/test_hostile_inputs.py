@@ -176,6 +176,8 @@ COMMANDS = {
     "sweep": ("sweep", "{file}", "--runs", "2", "--jobs", "1", "--out", "{out}"),
     "xgv-sim": ("xgv-sim", "--port", "0", "--scenario", "{file}", "--duration-s", "1"),
     "drive": ("drive", "--xgv", "127.0.0.1:9", "{file}", "--out", "{out}"),
+    "drive-can": ("drive", "--can", "pacmod3", "{file}", "--out", "{out}", "--can-interface",
+                  "virtual", "--can-channel", "hostile"),
     "launch": ("launch", "{file}", "--out", "{out}", "--quiet"),
     "node": ("node", "move", "--scenario", "{file}", "--connect", "tcp/127.0.0.1:9"),
 }
@@ -219,6 +221,8 @@ OUT_COMMANDS = {
     "sweep": ("sweep", str(VALID), "--runs", "1", "--jobs", "1", "--out", "{out}"),
     "move-server": ("move-server", "-s", "--duration-s", "1", "--quiet", "--out", "{out}"),
     "drive": ("drive", "--xgv", "127.0.0.1:9", str(VALID), "--out", "{out}"),
+    "drive-can": ("drive", "--can", "pacmod3", str(VALID), "--out", "{out}", "--can-interface",
+                  "virtual", "--can-channel", "hostile"),
     "launch": ("launch", str(VALID), "--quiet", "--out", "{out}"),
     "plot": ("plot", "{tmp}", "--out", "{out}"),
 }

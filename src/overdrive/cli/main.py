@@ -323,11 +323,11 @@ def _drive_can(scenario: Path, out_dir: Path | None, quiet: bool, vehicle_file: 
     from overdrive.scenario.vehicles import read_vehicle_file
 
     config = resolve_from_flags(*flags)
-    click.echo("CAN: " + config.describe().replace("\n", "; "), err=True)
     try:
         loaded = load_scenario(scenario)
         vehicle = read_vehicle_file(vehicle_file) if vehicle_file is not None else None
         out = make_out_dir(out_dir or default_out_dir(loaded))
+        click.echo("CAN: " + config.describe().replace("\n", "; "), err=True)
         click.echo(f"run folder: {out} (overdrive engage --run {out})", err=True)
         result = run_drive_can(loaded, config, out, vehicle=vehicle,
                                dialect="v14" if dialect == "v14" else "v3", dbc=dbc,
