@@ -333,12 +333,12 @@ def _drive_can(scenario: Path, out_dir: Path | None, quiet: bool, vehicle_file: 
                                dialect="v14" if dialect == "v14" else "v3", dbc=dbc,
                                engage=engage, bring_up=bring_up,  # type: ignore[arg-type]
                                display=lambda line: click.echo(line, err=True))
+    except CanConfigError as exc:   # the bus did not open: nothing was driven
+        click.echo(f"error: {exc}", err=True)
+        raise SystemExit(EXIT_VIOLATION) from None
     except (ScenarioError, OutDirError, KitError, ValueError) as exc:
         fail_usage(str(exc))
         return
-    except CanConfigError as exc:
-        click.echo(f"error: {exc}", err=True)
-        raise SystemExit(EXIT_VIOLATION) from None
     if quiet:
         click.echo(str(out))
     else:
