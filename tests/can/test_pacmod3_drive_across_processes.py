@@ -40,11 +40,12 @@ class Rig:
         self.drive: subprocess.Popen | None = None
         self.out = tmp_path / "run"
 
-    def run_drive(self, move: dict, duration_s: float, engage: bool = True) -> None:
+    def run_drive(self, move: dict, duration_s: float, engage: bool = True,
+                  extra: tuple[dict, ...] = ()) -> None:
         path = self.tmp / "scenario.yaml"
         path.write_text(yaml.safe_dump({"name": "across", "start": "ready", "seed": 1,
                                         "duration_s": duration_s,
-                                        "events": [{"at_s": 1.5, "move": move}]}))
+                                        "events": [{"at_s": 1.5, "move": move}, *extra]}))
         self.drive = subprocess.Popen(
             [OVERDRIVE, "drive", "--can", "pacmod3", str(path), "--out", str(self.out),
              "--quiet", *(["--engage"] if engage else []), "--can-interface", "socketcand",
@@ -162,3 +163,20 @@ def test_an_override_disengages_no_planner_command_re_engages_the_operator_does(
     cleared = [c for c in commands if c["t"] > pressed_t + 1.0 and c.get("clear_override")]
     assert cleared and cleared[0]["t"] < engage_t, "re-engaged through the clear-override edge"
     r.drive.wait(60)
+
+
+def test_a_curve_turns_right_and_a_silent_planner_stops_it_engaged(rig) -> None:
+    r = rig()
+    r.run_drive({"distance_m": 40, "maxspeed_mps": 3, "curvature_1pm": 0.05}, 16.0,
+                extra=({"at_s": 10.0, "stall": {"node": "move", "for_s": 5.9}},))
+    r.drive.communicate(timeout=90)
+    commands, truths = r.records()
+    brakes = [c for c in commands if c["cmd"] == "BrakeCmd"]
+    assert brakes[-2]["enable"] and not brakes[-1]["enable"], \
+        "engaged to the drive's end (its last frames hand the kit back)"
+    engaged = [t for t in truths if len(t["truth"]["enabled"]) == 4]
+    last = engaged[-1]
+    assert last["t"] >= brakes[-2]["t"] - 0.1
+    assert last["truth"]["heading_rad"] < -0.1, "curvature +0.05 turns right (clockwise)"
+    assert abs(last["truth"]["speed_mps"]) < 0.05, "stopped while the planner was silent"
+    assert last["truth"]["odometer_m"] < 35.0, "short of the MOVE's end"
