@@ -30,6 +30,8 @@ def main(argv: list[str]) -> None:
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     start = time.monotonic()
+    wall_minus_mono = time.time() - time.monotonic()   # the hub stamps frames with time.time()
+    last_s = 0.0
     next_s = start
     last_truth = -1.0
     with open(log_path, "w", encoding="utf-8", buffering=1) as log:
@@ -41,8 +43,11 @@ def main(argv: list[str]) -> None:
                                     end_s=now_s + 1.0))
                 log.write(json.dumps({"t": now_s, "pressed": True}) + "\n")
                 press = None
-            for _, frame in bus.receive(0.0, now_s):
-                kit.receive(frame, now_s)
+            for stamp, frame in bus.receive(0.0, now_s):
+                # a frame's time is the hub's stamp (a kit process starved of CPU reads late
+                # frames that were on time), never ahead of now nor behind the last one
+                last_s = min(max(stamp - wall_minus_mono - start, last_s), now_s)
+                kit.receive(frame, last_s)
                 try:
                     msg = kit.codec.decode(frame)
                 except ValueError:
@@ -51,7 +56,7 @@ def main(argv: list[str]) -> None:
                 for name in msg.__struct_fields__:
                     value = getattr(msg, name)
                     fields[name] = float(value) if isinstance(value, float) else int(value)
-                log.write(json.dumps({"t": now_s, "cmd": type(msg).__name__, **fields}) + "\n")
+                log.write(json.dumps({"t": last_s, "cmd": type(msg).__name__, **fields}) + "\n")
             kit.step(now_s)
             bus.send(kit.report_frames(now_s), now_s)
             bus.traffic()

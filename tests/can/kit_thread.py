@@ -35,11 +35,17 @@ class KitThread:
 
     def _run(self) -> None:
         next_s = time.monotonic()
+        wall_minus_mono = time.time() - time.monotonic()   # the virtual bus stamps time.time()
+        last_s = 0.0
         while not self.stop.is_set():
             now_s = time.monotonic() - self.start_s
             with self.lock:
-                for _, frame in self.port.receive(0.0, now_s):
-                    self.kit.receive(frame, now_s)
+                for stamp, frame in self.port.receive(0.0, now_s):
+                    # a frame's time is when it was sent (a thread starved by the GIL reads
+                    # late frames that were on time), never ahead of now nor behind the last
+                    sent_s = stamp - wall_minus_mono - self.start_s
+                    last_s = min(max(sent_s, last_s), now_s)
+                    self.kit.receive(frame, last_s)
                     with contextlib.suppress(ValueError):
                         self.received.append((now_s, self.kit.codec.decode(frame)))
                 self.kit.step(now_s)
