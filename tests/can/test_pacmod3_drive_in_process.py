@@ -42,7 +42,9 @@ def drive(tmp_path: Path, channel: str, move: dict, duration_s: float, extra=(),
 def test_a_10_m_move_ends_within_0_2_m_by_the_kit_and_engages_brake_first(tmp_path) -> None:
     result, kit, truth = drive(tmp_path, "e2e-move", {"distance_m": 10, "maxspeed_mps": 3,
                                                       "curvature_1pm": 0}, 18.0, engage=True)
-    assert truth.odometer_m == pytest.approx(10.0, abs=0.2), result.summary["violations"]
+    why = (result.summary["violations"], result.summary["link"]["transitions"],
+           result.summary["wall_clock"])   # a kit timeout under load: how late the drive was
+    assert truth.odometer_m == pytest.approx(10.0, abs=0.2), why
     assert abs(truth.speed_mps) < 0.05
     commands = [m for _, m in kit.received]
     first_on = next(i for i, m in enumerate(commands) if getattr(m, "enable", False))
