@@ -383,11 +383,11 @@ class Pacmod3Codec:
         if m.message in _COUNTED and signals["COMPLEMENT"] != complement4(signals["COUNTER"]):
             raise KitDecodeError(f"{m.message}: complement {signals['COMPLEMENT']} does not "
                                  f"match counter {signals['COUNTER']}")
-        kwargs = {field: convert(signals[signal])
-                  for field, signal, convert in self._converters[m.cls]}
         try:
+            kwargs = {field: convert(signals[signal])
+                      for field, signal, convert in self._converters[m.cls]}
             return m.cls(**kwargs)
-        except ValueError as e:   # a gear the enum does not have
+        except ValueError as e:   # a gear the enum does not have (SHIFT_CMD 8..255)
             raise KitDecodeError(f"{m.message}: {e}") from e
 
 

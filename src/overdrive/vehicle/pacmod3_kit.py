@@ -57,7 +57,7 @@ import msgspec
 
 from overdrive.dynamics.steering_ratio import road_wheel_rad, steering_wheel_rad
 from overdrive.dynamics.vehicle_params import VehicleParams
-from overdrive.kits.frames import CanFrame, KitDecodeError, KitEncodeError, UnknownFrame
+from overdrive.kits.frames import CanFrame, KitEncodeError, UnknownFrame
 from overdrive.kits.pacmod3 import (
     COUNTER_MODULO,
     GEAR_COMMANDS,
@@ -330,7 +330,7 @@ class Pacmod3Kit:
         except UnknownFrame:
             self._bad("unknown_id")
             return
-        except KitDecodeError as e:
+        except ValueError as e:   # KitDecodeError, or anything else a decoder may raise
             self._bad("bad_complement" if "complement" in str(e) else "malformed")
             return
         name = type(msg).__name__
