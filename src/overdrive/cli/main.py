@@ -15,6 +15,7 @@ import msgspec
 
 from overdrive import __version__
 from overdrive.cli.bus import echo, launch, node, pub
+from overdrive.cli.can import can_hub, can_monitor
 from overdrive.cli.jaus import jaus
 from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
@@ -295,7 +296,7 @@ def bench() -> None:
 
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
-    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo):
+    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor):
         main.add_command(command)
 
 
