@@ -17,6 +17,7 @@ from overdrive import __version__
 from overdrive.cli.bus import echo, launch, node, pub
 from overdrive.cli.can import can_hub, can_monitor
 from overdrive.cli.jaus import jaus
+from overdrive.cli.kit_sim import kit_sim
 from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
 from overdrive.cli.summary import print_summary
@@ -296,7 +297,8 @@ def bench() -> None:
 
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
-    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor):
+    for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor,
+                    kit_sim):
         main.add_command(command)
 
 
