@@ -36,3 +36,4 @@ def test_a_good_fault_is_on_the_scenario_clock() -> None:
         "override", "steering", 5.0, 7.0, 4.0)
     assert parse_fault("silence::3:4").system is None
     assert parse_fault("stuck:brake:2").end_s is None
+
