@@ -114,3 +114,37 @@ def test_kit_sim_as_a_process_over_the_hub_times_out_a_quiet_stack(tmp_path: Pat
     assert summary["frames_seen"]["AccelCmd"] >= 60
     assert summary["odometer_m"] > 0.3
     assert any(isinstance(r, GlobalRpt) and r.enabled for _, r in reports)
+
+
+def test_a_kit_sim_starved_of_cpu_judges_the_timeout_by_bus_arrival() -> None:
+    """The kit-sim's loop stalls 0.3 s (a starved process) while the stack keeps sending at
+    30 Hz: the frames waiting in its socket carry their bus time stamps, so no system times out
+    (read late, they would all have: 0.3 s > 100 ms)."""
+    channel = f"kitsim-stall-{os.getpid()}"
+    stalled = threading.Event()
+    start = time.monotonic()
+
+    def clock() -> float:
+        now = time.monotonic()
+        if now - start > 1.2 and not stalled.is_set():
+            stalled.set()
+            time.sleep(0.3)
+            now = time.monotonic()
+        return now
+
+    server = KitSimServer(resolve_can_config(interface="virtual", channel=channel))
+    thread = threading.Thread(target=server.serve, kwargs={"duration_s": 10.0, "clock": clock},
+                              daemon=True)
+    thread.start()
+    client = CanPort(resolve_can_config(interface="virtual", channel=channel))
+    try:
+        engage_and_drive(client)
+    finally:
+        server.stop()
+        thread.join(5.0)
+        client.close()
+        server.close()
+    summary = server.summary()
+    assert stalled.is_set()
+    assert len(summary["enable_edges"]) == 4
+    assert summary["timeouts"] == []

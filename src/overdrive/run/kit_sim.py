@@ -13,11 +13,16 @@ On exit (SIGINT, SIGTERM, ``--duration``) it writes the kit's summary as JSON (`
 ground truth, odometer, frames seen, enable edges, timeouts, overrides, the last command frame
 per system, bad frames by reason, and the bus's own counts, so a test judges a drive from the
 kit's own odometry.
+
+A frame's time on the kit's clock is when it reached the bus (python-can's time stamp,
+``STAMP_TRUST_S``), not when this loop read it: a kit-sim starved of CPU (``make
+test-under-load``) must not time out a stack whose frames were on time, as hardware would not.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -40,6 +45,13 @@ PERIOD_S: Final = 0.01
 DEFAULT_VEHICLE: Final = "lexus-rx450h"
 """The PACMod default (issue 32): Lexus RX 450h, wheelbase 2.79 m."""
 TRUTH_HEADER: Final = "t_s,scenario_s,x_m,y_m,speed_mps,odometer_m"
+STAMP_TRUST_S: Final = 1.0
+"""A frame's bus time stamp (python-can's, the wall clock of the hub or interface that received
+it) is its arrival time when it is at most this old and not in the future (5 ms of slack): a
+kit-sim starved of CPU then judges the command timeout by when frames reached the bus, as the
+kit's hardware would, not by when this process got round to reading them. Older or later
+stamps (a clock step) are not trusted: the frame arrived when it was read."""
+STAMP_FUTURE_S: Final = 0.005
 
 
 def parse_fault(text: str) -> KitFault:
@@ -84,6 +96,8 @@ class KitSimServer:
         self.reports_sent = 0
         self.bus_problems: list[str] = []
         self.ignored_events: dict[str, int] = {}
+        self._wall0 = 0.0
+        self._last_arrival_s = 0.0
 
     def stop(self) -> None:
         self._stop.set()
@@ -98,24 +112,25 @@ class KitSimServer:
         self.close()
 
     def serve(self, duration_s: float | None = None,
-              clock: Callable[[], float] = time.monotonic, truth: TextIO | None = None) -> None:
+              clock: Callable[[], float] = time.monotonic, truth: TextIO | None = None,
+              wall_clock: Callable[[], float] = time.time) -> None:
         """Hand arriving frames to the kit, step it every ``PERIOD_S``, send its reports."""
         kit, port = self.kit, self.port
         start = clock()
+        self._wall0 = wall_clock() - (clock() - start)   # the wall-clock time of kit time 0
         tick = 0
         while not self._stop.is_set():
             now = clock() - start
             if duration_s is not None and now >= duration_s:
                 break
             next_tick_s = tick * PERIOD_S
-            for _, frame in port.receive(timeout_s=max(0.0, next_tick_s - now)):
-                arrived = clock() - start
-                if self.scenario_start_s is None:
-                    self._start_scenario(arrived)
-                kit.receive(frame, arrived)
-            now = clock() - start
             if now < next_tick_s:
+                batch = port.receive(timeout_s=next_tick_s - now)
+                self._take(batch, clock() - start)
                 continue
+            # the step's time is read first, then everything that arrived is drained: a stall
+            # anywhere in between cannot make frames already on the bus look late
+            self._take(port.receive(timeout_s=0.0), now)
             self.now_s = now
             if self.player is not None and self.scenario_start_s is not None:
                 self._play(now - self.scenario_start_s)
@@ -128,6 +143,24 @@ class KitSimServer:
             if truth is not None:
                 self._write_truth(truth, now)
             tick = max(tick + 1, int(now / PERIOD_S))
+
+    def _take(self, batch: list[tuple[float, Any]], read_s: float) -> None:
+        """Hand ``batch`` (python-can stamps and frames, read at ``read_s``) to the kit."""
+        for stamp, frame in batch:
+            arrived = self._arrival_s(stamp, read_s)
+            if self.scenario_start_s is None:
+                self._start_scenario(arrived)
+            self.kit.receive(frame, arrived)
+
+    def _arrival_s(self, stamp: float, read_s: float) -> float:
+        """A frame's arrival on the kit's clock (``STAMP_TRUST_S``), never before the previous
+        frame's."""
+        t = stamp - self._wall0
+        if not (math.isfinite(t) and read_s - STAMP_TRUST_S <= t <= read_s + STAMP_FUTURE_S):
+            t = read_s
+        t = min(max(t, self._last_arrival_s), read_s)
+        self._last_arrival_s = t
+        return t
 
     def _start_scenario(self, now_s: float) -> None:
         self.scenario_start_s = now_s
