@@ -17,6 +17,15 @@ from hypothesis import strategies as st
 
 from overdrive.cli.main import main
 from overdrive.fuzzing import mutate
+from overdrive.kits.frames import CanFrame, KitError
+from overdrive.kits.pacmod3 import (
+    AccelCmd,
+    GlobalCmd,
+    Pacmod3Codec,
+    SteeringCmd,
+    SupervisoryCtrl,
+    VehicleSpeedRpt,
+)
 from overdrive.scenario.schema import EVENT_KINDS, ScenarioError, load_scenario, parse_scenario
 
 scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**6, 10**6),
@@ -58,6 +67,7 @@ def test_structured_scenarios_validate_or_name_a_field(events, world) -> None:
 
 
 argv_words = st.sampled_from(["sim", "sweep", "jaus", "decode", "encode", "replay", "plot",
+                              "can-log", "export", "--format", "asc", "--dialect", "v14",
                               "--seed", "--out", "--runs", "--jobs", "-1", "0", "nan", "inf",
                               "zz", "01", "--quiet", "--realtime", "--xgv", "drive",
                               "move-server", "-s", "--duration-s", "1e309", "", "--help"])
@@ -150,3 +160,39 @@ def test_alias_fan_out_is_bounded(tmp_path_factory, levels, fan_out) -> None:
     for i in range(1, levels):
         lines.append(f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * fan_out)}]")
     _load_file(tmp_path_factory.getbasetemp(), ("\n".join(lines) + "\nname: t\n").encode())
+
+
+# ----------------------------------------------------------------- PACMod 3 CAN frames
+
+PACMOD3 = (Pacmod3Codec("v3"), Pacmod3Codec("v14"))
+PACMOD3_SEEDS = [codec.encode(msg) for codec, msg in [
+    (PACMOD3[0], AccelCmd(enable=True, accel_ratio=0.5)),
+    (PACMOD3[0], SteeringCmd(enable=True, position_rad=-1.0, rotation_rate_radps=2.0)),
+    (PACMOD3[0], VehicleSpeedRpt(speed_mps=3.0, valid=True)),
+    (PACMOD3[1], GlobalCmd(counter=5)),
+    (PACMOD3[1], SupervisoryCtrl(counter=9, enable=True)),
+    (PACMOD3[1], AccelCmd(enable=True, accel_ratio=0.25))]]
+
+
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(PACMOD3_SEEDS), st.randoms(use_true_random=False), st.integers(1, 4),
+       st.booleans())
+def test_mutated_pacmod3_frames_decode_or_raise_kit_error(seed, rng, rounds, keep_id) -> None:
+    """A garbage frame never becomes a message the encoder would refuse: whatever decodes
+    encodes back to a frame that decodes to the same message; the rest is a KitError."""
+    data = seed.data
+    can_id = seed.arbitration_id
+    for _ in range(rounds):
+        data = mutate(data, rng)
+        if not keep_id:
+            can_id = rng.choice([can_id, can_id ^ 1, can_id + 1, rng.randrange(0x800)]) & 0x7FF
+    try:
+        frame = CanFrame(arbitration_id=can_id, data=data)
+    except KitError:
+        return
+    for codec in PACMOD3:
+        try:
+            msg = codec.decode(frame)
+        except KitError:
+            continue
+        assert codec.decode(codec.encode(msg)) == msg

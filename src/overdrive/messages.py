@@ -505,5 +505,5 @@ ALL_MESSAGES: tuple[type[Message], ...] = (
     MoveCommand, MoveReply, MoveStatus, ClockEstimate, SteeringRequest, MaxSpeed, AdvanceAuthorization,
     DriveMode, DrivingStatus, SetSpeed, SpeedState, PedalCommand, SteerCommand, PowertrainCommand,
     SafetyDevices, VehicleStatus, WheelSpeed, GpsIns, Imu, Radar, Truth, Notice, NodeTick,
-    Display,
+    Display, CanTraffic,
 )

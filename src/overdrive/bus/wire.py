@@ -24,6 +24,7 @@ from overdrive.messages import (
     ALL_MESSAGES,
     SCHEMA_VERSION,
     AdvanceAuthorization,
+    CanTraffic,
     ClockEstimate,
     Display,
     DriveMode,
@@ -62,7 +63,7 @@ TOPIC_TYPES: dict[str, type] = {
     Topic.POWERTRAIN: PowertrainCommand, Topic.SAFETY: SafetyDevices,
     Topic.VEHICLE_STATUS: VehicleStatus, Topic.WHEEL_SPEED: WheelSpeed, Topic.GPS_INS: GpsIns,
     Topic.IMU: Imu, Topic.RADAR: Radar, Topic.TRUTH: Truth, Topic.NOTICE: Notice,
-    Topic.TICK: NodeTick, Topic.DISPLAY: Display,
+    Topic.TICK: NodeTick, Topic.DISPLAY: Display, Topic.CAN_FRAMES: CanTraffic,
 }
 """The one message type each stack topic carries (messages.py's topic comments)."""
 

@@ -16,6 +16,7 @@ import msgspec
 from overdrive import __version__
 from overdrive.cli.bus import echo, launch, node, pub
 from overdrive.cli.can import can_hub, can_monitor
+from overdrive.cli.can_log import can_log
 from overdrive.cli.jaus import jaus
 from overdrive.cli.kit_sim import kit_sim
 from overdrive.cli.link import link_proxy
@@ -298,7 +299,7 @@ def bench() -> None:
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
     for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor,
-                    kit_sim):
+                    can_log, kit_sim):
         main.add_command(command)
 
 

@@ -8,11 +8,14 @@ The layout comes from a DBC file read with cantools, never from offsets typed he
   ``CLEAR_FAULTS`` bit and there is no global command.
 - **the newer kits** (DBC 12 to 14, ``"v14"`` dialect) add ``GLOBAL_CMD`` (0x80: clear faults,
   clear overrides, a 4-bit counter and its complement), ``SUPERVISORY_CTRL`` (0x81: allow
-  enable, with counter and complement) and ``GLOBAL_RPT``'s ``SUPERVISORY_ENABLE_REQUIRED`` bit.
-  The newest DBC (pacmod_dbc v14) carries no licence and is not shipped; those three messages
-  are in ``overdrive_pacmod3_v14_global.dbc``, written for overdrive from the byte layout of the
-  MIT pacmod3_common library (``src/autogen/pacmod12.c``). The system commands' layout is the
-  same in both (v14 moved ``CLEAR_FAULTS`` to ``GLOBAL_CMD``; the bit is sent as 0 there).
+  enable, with counter and complement) and ``GLOBAL_RPT``'s ``SUPERVISORY_ENABLE_REQUIRED`` bit,
+  and change the layout of messages the codec uses: shorter frames (ACCEL_CMD 3 bytes,
+  STEERING_CMD 5, SHIFT_CMD 2, SHIFT_RPT 4, VEHICLE_SPEED_RPT 3, YAW_RATE_RPT 2), no
+  ``CLEAR_FAULTS`` in the system commands (it moved to ``GLOBAL_CMD``), a ``COMMAND_TIMEOUT``
+  bit in the system reports, and a signed front-left wheel speed. The newest DBC (pacmod_dbc
+  v14) carries no licence and is not shipped; those messages are in
+  ``overdrive_pacmod3_v14_global.dbc``, written for overdrive from the byte layout of the MIT
+  pacmod3_common library (``src/autogen/pacmod12.c`` / ``pacmod12.h``).
 - **a user's own DBC** (``Pacmod3Codec(dbc_path=...)``) replaces the shipped one; it must define
   every message and signal the codec uses, checked when it is loaded.
 
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import struct
 from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
@@ -148,6 +152,7 @@ class _SystemRpt(msgspec.Struct, frozen=True, kw_only=True):
     output_reported_fault: bool = False
     pacmod_fault: bool = False
     vehicle_fault: bool = False
+    command_timeout: bool = False   # v14 only: the system's commands stopped (always false in v3)
 
     @property
     def faulted(self) -> bool:
@@ -221,7 +226,8 @@ _RPT_FLAGS: Final = (("enabled", "ENABLED"), ("override_active", "OVERRIDE_ACTIV
                      ("command_output_fault", "COMMAND_OUTPUT_FAULT"),
                      ("input_output_fault", "INPUT_OUTPUT_FAULT"),
                      ("output_reported_fault", "OUTPUT_REPORTED_FAULT"),
-                     ("pacmod_fault", "PACMOD_FAULT"), ("vehicle_fault", "VEHICLE_FAULT"))
+                     ("pacmod_fault", "PACMOD_FAULT"), ("vehicle_fault", "VEHICLE_FAULT"),
+                     ("command_timeout", "COMMAND_TIMEOUT"))
 _RPT_VALUES: Final = (("manual_input", "MANUAL_INPUT"), ("commanded_value", "COMMANDED_VALUE"),
                       ("output_value", "OUTPUT_VALUE"))
 _GLOBAL_RPT: Final = (("enabled", "PACMOD_SYSTEM_ENABLED"),
@@ -273,6 +279,9 @@ _V14_MAPS: Final = (
                                    ("supervisory_enable_required", "SUPERVISORY_ENABLE_REQUIRED"))),
 )
 _COUNTED: Final = frozenset({"GLOBAL_CMD", "SUPERVISORY_CTRL"})
+_OPTIONAL_SIGNALS: Final = frozenset({"CLEAR_FAULTS", "COMMAND_TIMEOUT"})
+"""Signals one dialect lacks (v14 commands have no CLEAR_FAULTS; v3 reports no COMMAND_TIMEOUT):
+absent from the DBC in use, the field decodes as False and encoding it True is refused."""
 
 
 def _sha256(path: Path) -> str:
@@ -303,32 +312,47 @@ class Pacmod3Codec:
             raise KitError(f"{self.dbc_path}: cannot read as a DBC: {e}") from e
         self.dbc_sha256 = _sha256(self.dbc_path)
         self.dbc_version = db.version or self.dbc_path.stem
+        self.dbc_files: tuple[tuple[str, str], ...] = ((str(self.dbc_path), self.dbc_sha256),)
+        """Every DBC file read, ``(path, sha256)``: the v14 fragment too, for the run folder."""
         maps = list(_MAPS)
         sources = [(m, db) for m in maps]
         if dialect == "v14":
+            # A user's v14 DBC defines every message itself; with the shipped v3.4.0 DBC, the
+            # fragment supplies the messages added or changed since (and GLOBAL_RPT's new bit).
             ext = cantools.database.load_file(str(V14_GLOBAL_DBC), strict=True)
-            sources = [(m, db) for m in maps if m.message != "GLOBAL_RPT"]
-            for m in _V14_MAPS:
-                # A user's v14 DBC defines these itself; else the shipped fragment does.
-                has = m.message in {x.name for x in db.messages}
-                sources.append((m, db if has and self.dbc_path != SHIPPED_DBC else ext))
+            self.dbc_files += ((str(V14_GLOBAL_DBC), _sha256(V14_GLOBAL_DBC)),)
+            own = {x.name for x in db.messages} if self.dbc_path != SHIPPED_DBC else set()
+            ext_names = {x.name for x in ext.messages}
+            v14 = [*(m for m in maps if m.message != "GLOBAL_RPT"), *_V14_MAPS]
+            sources = [(m, db if m.message in own or m.message not in ext_names else ext)
+                       for m in v14]
         self._by_type: dict[type, tuple[_Map, Any]] = {}
         self._by_id: dict[int, tuple[_Map, Any]] = {}
-        self._converters: dict[type, tuple[tuple[str, str, Any], ...]] = {}
+        self._fields: dict[type, tuple[tuple[str, str], ...]] = {}
+        self._converters: dict[type, tuple[tuple[str, str, Any, int | None], ...]] = {}
+        self._limits: dict[type, tuple[tuple[str, float, float, frozenset[int], str], ...]] = {}
         for m, source in sources:
             try:
                 message = source.get_message_by_name(m.message)
             except KeyError as e:
                 raise KitError(f"{self.dbc_path}: no message {m.message}") from e
             names = {s.name for s in message.signals}
-            missing = [sig for _, sig in m.fields if sig not in names]
+            missing = [sig for _, sig in m.fields
+                       if sig not in names and sig not in _OPTIONAL_SIGNALS]
             if missing:
                 raise KitError(f"{self.dbc_path}: {m.message} lacks {', '.join(missing)}")
             self._by_type[m.cls] = (m, message)
             self._by_id[message.frame_id] = (m, message)
+            fields = tuple((f, sig) for f, sig in m.fields if sig in names)
+            self._fields[m.cls] = fields
             types = {f.name: f.type for f in msgspec.structs.fields(m.cls)}
-            self._converters[m.cls] = tuple((field, signal, types[field])
-                                            for field, signal in m.fields)
+            self._converters[m.cls] = tuple(
+                (field, signal, types[field],
+                 _decimals(message.get_signal_by_name(signal).scale) if types[field] is float
+                 else None)
+                for field, signal in fields)
+            self._limits[m.cls] = tuple(_limits(message.get_signal_by_name(signal))
+                                        for _, signal in fields)
 
     @property
     def frame_ids(self) -> frozenset[int]:
@@ -349,6 +373,12 @@ class Pacmod3Codec:
         values: dict[str, Any] = {}
         for field, signal in m.fields:
             value = getattr(msg, field)
+            if (field, signal) not in self._fields[m.cls]:   # a signal this dialect lacks
+                if value:
+                    hint = " (v14 clears faults with GlobalCmd)" if signal == "CLEAR_FAULTS" else ""
+                    raise KitEncodeError(f"{m.message}.{signal}: not in the {self.dialect} "
+                                         f"protocol{hint}")
+                continue
             if isinstance(value, bool):
                 value = int(value)
             elif isinstance(value, float) and not math.isfinite(value):
@@ -359,13 +389,18 @@ class Pacmod3Codec:
             values["COMPLEMENT"] = complement4(values["COUNTER"])
         try:
             data = message.encode(values, scaling=True, strict=True)
-        except (cantools.database.errors.EncodeError, ValueError, KeyError) as e:
+        except (cantools.database.errors.EncodeError, ValueError, KeyError, OverflowError,
+                struct.error) as e:
+            # OverflowError / struct.error: a value inside the DBC's stated range that its bits
+            # cannot hold (v3.4.0's unsigned WHEEL_SPD_FRONT_LEFT given a negative speed).
             raise KitEncodeError(f"{m.message}: {e}") from e
         return CanFrame(arbitration_id=message.frame_id, data=bytes(data))
 
     def decode(self, frame: CanFrame) -> Command | Report:
         """The typed message in ``frame``. Raises ``UnknownFrame`` for an id this dialect does
-        not use, ``KitDecodeError`` for a wrong length or a bad complement."""
+        not use, ``KitDecodeError`` for a wrong length, a bad complement, or a value outside the
+        range the DBC states (unless the DBC names it: gears 5 to 7), so no report out of its
+        range (an accelerator at 65 times its travel) reaches the stack."""
         if frame.is_extended:
             raise UnknownFrame(f"extended id 0x{frame.arbitration_id:X}: PACMod 3 uses 11-bit ids")
         try:
@@ -383,12 +418,41 @@ class Pacmod3Codec:
         if m.message in _COUNTED and signals["COMPLEMENT"] != complement4(signals["COUNTER"]):
             raise KitDecodeError(f"{m.message}: complement {signals['COMPLEMENT']} does not "
                                  f"match counter {signals['COUNTER']}")
+        for signal, low, high, choices, stated in self._limits[m.cls]:
+            value = signals[signal]
+            if not low <= value <= high and value not in choices:
+                raise KitDecodeError(f"{m.message}.{signal}: {value:g} outside the DBC's range "
+                                     f"{stated}")
+        kwargs = {field: convert(signals[signal] if digits is None
+                                 else round(signals[signal], digits))
+                  for field, signal, convert, digits in self._converters[m.cls]}
         try:
-            kwargs = {field: convert(signals[signal])
-                      for field, signal, convert in self._converters[m.cls]}
-            return m.cls(**kwargs)
-        except ValueError as e:   # a gear the enum does not have (SHIFT_CMD 8..255)
+            msg = m.cls(**kwargs)
+            # a command frame must hold what a command may carry: the encoder's own ranges
+            # (position -32.768 rad is in the DBC's range but not in the symmetric +-32.767)
+            _check_command(msg, m.message)
+        except ValueError as e:   # a gear the enum does not have; KitEncodeError
             raise KitDecodeError(f"{m.message}: {e}") from e
+        return msg
+
+
+def _decimals(scale: float) -> int | None:
+    """Decimal places of a power-of-ten scale (0.001 -> 3): a decoded value is rounded to them,
+    so raw 3300 at 0.001 reads 3.3, not 3300 * 0.001 = 3.3000000000000003. None otherwise."""
+    if not 0 < scale < 1:
+        return None
+    digits = round(-math.log10(scale))
+    return digits if math.isclose(10.0 ** -digits, scale) else None
+
+
+def _limits(signal: Any) -> tuple[str, float, float, frozenset[int], str]:
+    """A signal's DBC range, widened by half a step (the scaled raw values at its ends), the
+    values its ``VAL_`` table names, and the range as the DBC states it (for errors)."""
+    half_step = abs(signal.scale) / 2
+    low = -math.inf if signal.minimum is None else signal.minimum - half_step
+    high = math.inf if signal.maximum is None else signal.maximum + half_step
+    return (signal.name, low, high, frozenset(signal.choices or ()),
+            f"[{signal.minimum}|{signal.maximum}]")
 
 
 def _check_command(msg: Any, name: str) -> None:
