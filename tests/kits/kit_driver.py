@@ -14,7 +14,7 @@ from overdrive.kits.pacmod3 import (
     ShiftCmd,
     SteeringCmd,
 )
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_kit import COMMAND_PERIOD_S, KitFault, Pacmod3Kit
 
 STEP_S = 0.01
@@ -24,7 +24,7 @@ CODECS = {dialect: Pacmod3Codec(dialect) for dialect in ("v3", "v14")}   # a DBC
 
 
 def lexus_kit(dialect: str = "v3", faults: tuple[KitFault, ...] = ()) -> Pacmod3Kit:
-    return Pacmod3Kit(PRESETS["lexus-rx450h"], codec=CODECS[dialect], faults=faults)
+    return Pacmod3Kit(KIT_VEHICLES["lexus-rx450h"], codec=CODECS[dialect], faults=faults)
 
 
 def command(system: str, enable: bool, value: float | Gear = 0.0, **flags: Any) -> Any:

@@ -20,10 +20,10 @@ from overdrive.dynamics.steering_ratio import (
     steering_wheel_rad,
 )
 from overdrive.dynamics.vehicle_params import VehicleSpecError, vehicle_from_data, vehicle_to_data
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES, PRESETS
 from overdrive.vehicle.pacmod3_kit import Pacmod3Kit
 
-LEXUS = PRESETS["lexus-rx450h"]
+LEXUS = KIT_VEHICLES["lexus-rx450h"]
 
 
 def with_ratio(value: object) -> dict:

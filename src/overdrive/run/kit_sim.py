@@ -36,7 +36,7 @@ from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
 from overdrive.runtime.can_edge import CanConfig, CanConfigError, CanPort
 from overdrive.scenario.player import ScenarioPlayer, world_from_spec
 from overdrive.scenario.schema import Scenario
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_kit import KitFault, Pacmod3Kit
 from overdrive.vehicle.plant import ActuatorFaults
 
@@ -82,7 +82,7 @@ class KitSimServer:
                  vehicle: Any = None, dialect: Dialect = "v3",
                  faults: tuple[KitFault, ...] = ()) -> None:
         params = vehicle if vehicle is not None else (
-            scenario.vehicle if scenario is not None else PRESETS[DEFAULT_VEHICLE])
+            scenario.vehicle if scenario is not None else KIT_VEHICLES[DEFAULT_VEHICLE])
         spec = scenario.spec if scenario is not None else None
         self.kit = Pacmod3Kit(params, world_from_spec(spec.world) if spec is not None else None,
                               spec.seed if spec is not None else 1, dialect=dialect)
