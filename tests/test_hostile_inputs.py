@@ -175,6 +175,8 @@ def test_hostile_file_is_exit_2_with_one_line(tmp_path: Path, case: str) -> None
 COMMANDS = {
     "sweep": ("sweep", "{file}", "--runs", "2", "--jobs", "1", "--out", "{out}"),
     "xgv-sim": ("xgv-sim", "--port", "0", "--scenario", "{file}", "--duration-s", "1"),
+    "kit-sim": ("kit-sim", "pacmod3", "--can-interface", "virtual", "--can-channel", "hostile",
+                "--scenario", "{file}", "--duration", "1"),
     "drive": ("drive", "--xgv", "127.0.0.1:9", "{file}", "--out", "{out}"),
     "drive-can": ("drive", "--can", "pacmod3", "{file}", "--out", "{out}", "--can-interface",
                   "virtual", "--can-channel", "hostile"),

@@ -40,7 +40,14 @@ from overdrive.scenario.schema import (
     load_scenario_text,
     parse_scenario,
 )
-from overdrive.scenario.vehicles import PRESET_DIR, PRESETS, read_vehicle_file
+from overdrive.scenario.vehicles import (
+    KIT_VEHICLES,
+    PRESET_DIR,
+    PRESETS,
+    SHIPPED,
+    read_vehicle_file,
+    vehicle_from_spec,
+)
 from tests.test_hostile_inputs import _bomb, assert_usage_error, overdrive
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -126,13 +133,19 @@ def _typed(value: Any) -> Any:
     return (type(value).__name__, value.hex() if isinstance(value, float) else value)
 
 
-BORN_AS_FILES = ("lexus-rx450h",)
-"""Presets shipped as files from the start (issue 32's PACMod default): no Python original."""
-
-
 def test_the_shipped_presets_are_the_files_in_file_name_order() -> None:
-    assert (list(PRESETS) == sorted([*REFERENCE, *BORN_AS_FILES])
+    assert (list(PRESETS) == sorted(REFERENCE)
             == [p.stem for p in sorted(PRESET_DIR.glob("*.yaml"))])
+    assert list(KIT_VEHICLES) == [p.stem for p in sorted((PRESET_DIR / "kits").glob("*.yaml"))]
+    assert set(SHIPPED) == set(PRESETS) | set(KIT_VEHICLES)
+    assert not set(PRESETS) & set(KIT_VEHICLES)
+
+
+def test_a_kit_vehicle_is_named_like_a_preset_and_round_trips_through_plain_data() -> None:
+    params = vehicle_from_spec("lexus-rx450h")
+    assert params == KIT_VEHICLES["lexus-rx450h"] and params.wheelbase_m == 2.79
+    data = vehicle_to_data(params)
+    assert tuple(data) == FILE_FIELDS and vehicle_from_data(data) == params
 
 
 @pytest.mark.parametrize("name", sorted(REFERENCE))
@@ -142,7 +155,7 @@ def test_each_preset_file_loads_to_exactly_the_old_python_values(name: str) -> N
     assert _typed(loaded) == _typed(REFERENCE[name]), "same values, same types, same bits"
 
 
-@pytest.mark.parametrize("name", sorted([*REFERENCE, *BORN_AS_FILES]))
+@pytest.mark.parametrize("name", sorted(REFERENCE))
 def test_a_preset_round_trips_through_plain_data(name: str) -> None:
     data = vehicle_to_data(PRESETS[name])
     assert tuple(data) == FILE_FIELDS

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 from overdrive.runtime.can_edge import CanPort, resolve_can_config
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_kit import KitFault, Pacmod3Kit
 
 STEP_S = 0.01
@@ -24,7 +24,7 @@ STEP_S = 0.01
 def main(argv: list[str]) -> None:
     port, log_path = int(argv[0]), argv[1]
     press = Path(argv[argv.index("--press-file") + 1]) if "--press-file" in argv else None
-    kit = Pacmod3Kit(PRESETS["lexus-rx450h"])
+    kit = Pacmod3Kit(KIT_VEHICLES["lexus-rx450h"])
     bus = CanPort(resolve_can_config(interface="socketcand", channel="can0",
                                      host="127.0.0.1", port=port))
     stop = []

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from overdrive.messages import PedalCommand, PowertrainCommand, SteerCommand, Topic
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_client import Pacmod3Client, Pacmod3ClientConfig
 from overdrive.vehicle.pacmod3_kit import KitFault, Pacmod3Kit
 
@@ -38,7 +38,7 @@ def lock_step(client, kit, seconds, start_s, pedals, steer=None, engage_at=None,
 
 @pytest.mark.parametrize("dialect", ["v3", "v14"])
 def test_the_emulated_kit_accepts_the_engage_sequence_and_drives(dialect: str) -> None:
-    params = PRESETS["lexus-rx450h"]
+    params = KIT_VEHICLES["lexus-rx450h"]
     kit = Pacmod3Kit(params, dialect=dialect)
     client = Pacmod3Client(params, Pacmod3ClientConfig(dialect=dialect))
     hold = PedalCommand(throttle_pct=0.0, brake_pct=60.0, source="speed")
@@ -58,7 +58,7 @@ def test_the_emulated_kit_accepts_the_engage_sequence_and_drives(dialect: str) -
 
 
 def test_an_emulated_override_latches_until_the_operator_re_engages() -> None:
-    params = PRESETS["lexus-rx450h"]
+    params = KIT_VEHICLES["lexus-rx450h"]
     kit = Pacmod3Kit(params, faults=(KitFault(kind="override", system="steering", value=20.0,
                                               start_s=2.0, end_s=2.5),))
     client = Pacmod3Client(params)
@@ -73,7 +73,7 @@ def test_an_emulated_override_latches_until_the_operator_re_engages() -> None:
 
 @pytest.mark.parametrize("dialect", ["v3", "v14"])
 def test_a_kit_fault_latches_and_the_operator_re_engages_once_the_actuator_works(dialect) -> None:
-    params = PRESETS["lexus-rx450h"]
+    params = KIT_VEHICLES["lexus-rx450h"]
     kit = Pacmod3Kit(params, dialect=dialect, faults=(
         KitFault(kind="stuck", system="brake", start_s=2.0, end_s=3.0),))
     client = Pacmod3Client(params, Pacmod3ClientConfig(dialect=dialect))
@@ -87,7 +87,7 @@ def test_a_kit_fault_latches_and_the_operator_re_engages_once_the_actuator_works
 
 
 def test_an_engage_while_the_actuator_is_still_stuck_falls_back_to_faulted() -> None:
-    params = PRESETS["lexus-rx450h"]
+    params = KIT_VEHICLES["lexus-rx450h"]
     kit = Pacmod3Kit(params, faults=(KitFault(kind="stuck", system="brake", start_s=2.0,
                                               end_s=30.0),))
     client = Pacmod3Client(params)

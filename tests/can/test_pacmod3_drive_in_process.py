@@ -15,7 +15,7 @@ from overdrive.kits.pacmod3 import AccelCmd, BrakeCmd
 from overdrive.run.drive_can import DEFAULT_VEHICLE, run_drive_can
 from overdrive.runtime.can_edge import resolve_can_config
 from overdrive.scenario.schema import load_scenario
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from tests.can.kit_thread import KitThread
 
 pytestmark = pytest.mark.wallclock
@@ -30,7 +30,7 @@ def scenario(tmp_path: Path, name: str, move: dict, duration_s: float, extra=())
 
 
 def drive(tmp_path: Path, channel: str, move: dict, duration_s: float, extra=(), **options):
-    params = PRESETS[DEFAULT_VEHICLE]
+    params = KIT_VEHICLES[DEFAULT_VEHICLE]
     with KitThread(params, channel) as kit:
         result = run_drive_can(scenario(tmp_path, channel, move, duration_s, extra),
                                resolve_can_config(interface="virtual", channel=channel),

@@ -14,14 +14,17 @@ from overdrive.kits.pacmod3 import (
     ShiftCmd,
     SteeringCmd,
 )
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_kit import COMMAND_PERIOD_S, KitFault, Pacmod3Kit
 
 STEP_S = 0.01
 
 
+CODECS = {dialect: Pacmod3Codec(dialect) for dialect in ("v3", "v14")}   # a DBC load is ~50 ms
+
+
 def lexus_kit(dialect: str = "v3", faults: tuple[KitFault, ...] = ()) -> Pacmod3Kit:
-    return Pacmod3Kit(PRESETS["lexus-rx450h"], dialect=dialect, faults=faults)  # type: ignore[arg-type]
+    return Pacmod3Kit(KIT_VEHICLES["lexus-rx450h"], codec=CODECS[dialect], faults=faults)
 
 
 def command(system: str, enable: bool, value: float | Gear = 0.0, **flags: Any) -> Any:

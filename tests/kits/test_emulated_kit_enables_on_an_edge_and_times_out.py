@@ -102,3 +102,23 @@ def test_a_new_edge_after_a_timeout_enables_again() -> None:
     d.engage()
     assert d.kit.truth(d.now_s).enabled == SYSTEMS
     assert [s for s, _ in d.kit.events.enable_edges].count("accel") == 2
+
+
+def test_the_summary_says_the_brake_held_at_each_edge_and_when_throttle_first_came() -> None:
+    """What a stack's engage is judged by: brake enabled and held before accel enables, and no
+    throttle before that (the edges' brake ratio, the first throttle's time)."""
+    d = KitDriver(lexus_kit())
+    d.engage(("brake",), brake_ratio=0.6)
+    d.advance(0.3, lambda t: [command("brake", True, 0.6)])
+    d.engage(("accel", "steering", "shift"))
+    assert d.kit.events.first_throttle_s is None
+    d.advance(1.0, lambda t: [command("brake", True, 0.6), command("shift", True, Gear.FORWARD),
+                              command("steering", True), command("accel", True, 0.0)])
+    throttle_from_s = d.now_s
+    d.advance(2.0, drive_stream(accel=0.3, gear=Gear.FORWARD))
+    summary = d.kit.summary(d.now_s)
+    edges = {e["system"]: e for e in summary["enable_edges"]}
+    assert edges["brake"]["brake_ratio"] == 0.0         # the brake itself: none before it
+    assert edges["accel"]["brake_ratio"] == pytest.approx(0.6, abs=1e-3)
+    assert edges["brake"]["t_s"] < edges["accel"]["t_s"]
+    assert throttle_from_s <= summary["first_throttle_s"] <= throttle_from_s + 0.05

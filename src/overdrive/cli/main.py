@@ -19,6 +19,7 @@ from overdrive.cli.bus import echo, launch, node, pub
 from overdrive.cli.can import can_hub, can_monitor, can_options, resolve_from_flags
 from overdrive.cli.can_log import can_log
 from overdrive.cli.jaus import jaus
+from overdrive.cli.kit_sim import kit_sim
 from overdrive.cli.link import link_proxy
 from overdrive.cli.observe import COMMANDS, start_live
 from overdrive.cli.summary import print_summary
@@ -390,7 +391,7 @@ def bench() -> None:
 def _register() -> None:
     """Subcommands defined next to the code they drive."""
     for command in (*COMMANDS, jaus, link_proxy, node, launch, pub, echo, can_hub, can_monitor,
-                    can_log):
+                    can_log, kit_sim):
         main.add_command(command)
 
 

@@ -37,7 +37,7 @@ from overdrive.messages import SafetyDevices, Topic
 from overdrive.run.compose import build_nodes
 from overdrive.runtime.lockstep import LockstepRuntime
 from overdrive.scenario.schema import ScenarioError, parse_scenario
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import SHIPPED
 from overdrive.servers import direction_hold
 from overdrive.servers import move as move_server
 from overdrive.servers.speed_table import EVENTS, STATE_TABLE, STATES, mermaid_diagram
@@ -346,16 +346,16 @@ def _number(value: float) -> str:
 
 def vehicle_bounds_table() -> str:
     """Every vehicle parameter a scenario may override: its range, the presets' values, why."""
-    out = ["| parameter | unit | plausible range | " + " | ".join(PRESETS)
+    out = ["| parameter | unit | plausible range | " + " | ".join(SHIPPED)
            + " | where the bounds come from |",
-           "|---|---|---|" + "---|" * len(PRESETS) + "---|"]
+           "|---|---|---|" + "---|" * len(SHIPPED) + "---|"]
     for name, (low, high, why) in PLAUSIBLE_RANGES.items():
-        values = " | ".join(_number(getattr(p, name)) for p in PRESETS.values())
+        values = " | ".join(_number(getattr(p, name)) for p in SHIPPED.values())
         unit = next((u for suffix, u in VEHICLE_UNITS if name.endswith(suffix)), unit_of(name))
         out.append(f"| `{name}` | {unit or '-'} | {_number(low)} .. {_number(high)} | {values} "
                    f"| {_cell(why)} |")
     for name, (low, high, why) in GEAR_RANGES.items():   # a preset's cell: its lowest..highest
-        spans = [[getattr(g, name) for g in p.gears] for p in PRESETS.values()]
+        spans = [[getattr(g, name) for g in p.gears] for p in SHIPPED.values()]
         values = " | ".join(f"{_number(min(span))} .. {_number(max(span))}" for span in spans)
         unit = next((u for suffix, u in VEHICLE_UNITS if name.endswith(suffix)), unit_of(name))
         out.append(f"| `gears[].{name}` | {unit} | {_number(low)} .. {_number(high)} | {values} "

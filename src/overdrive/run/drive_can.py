@@ -33,7 +33,7 @@ from overdrive.runtime.can_link import (
     request_engage,
 )
 from overdrive.scenario.schema import Scenario
-from overdrive.scenario.vehicles import PRESETS
+from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_client import BringUp, Pacmod3Client, Pacmod3ClientConfig
 
 DEFAULT_VEHICLE: Final = "lexus-rx450h"
@@ -46,7 +46,7 @@ run's speed changes."""
 
 def pacmod_vehicle(scenario: Scenario, vehicle: VehicleParams | None) -> Scenario:
     """``scenario`` driving ``vehicle`` (None: the PACMod default, ``DEFAULT_VEHICLE``)."""
-    params = vehicle if vehicle is not None else PRESETS[DEFAULT_VEHICLE]
+    params = vehicle if vehicle is not None else KIT_VEHICLES[DEFAULT_VEHICLE]
     return msgspec.structs.replace(scenario, vehicle=params)
 
 

@@ -3,7 +3,10 @@
 A vehicle file holds ``name`` and every parameter of ``VehicleParams`` (units in the names, the
 gear table as a list), each number with its source in a comment; ``vehicle_from_data`` in
 ``overdrive.dynamics.vehicle_params`` checks it, this module reads it. ``PRESETS`` are the files
-shipped in the package (``overdrive/dynamics/vehicles/NAME.yaml``).
+shipped in the package (``overdrive/dynamics/vehicles/NAME.yaml``): the simulated vehicles every
+preset sweep of the test suite runs on. ``KIT_VEHICLES`` (``vehicles/kits/NAME.yaml``) are the
+shipped defaults of the CAN kits (``lexus-rx450h``, PACMod 3): named like presets, validated
+through their kit's emulator, not (yet) across the simulation sweeps (docs/safety-case.md H85).
 
 A scenario's ``vehicle`` (``vehicle_from_spec``) is one of:
 
@@ -57,9 +60,9 @@ def read_vehicle_file(path: str | Path) -> VehicleParams:
         raise VehicleFileError(str(path), exc.field, exc.reason) from None
 
 
-def _load_presets() -> dict[str, VehicleParams]:
+def _load_presets(folder: Path = PRESET_DIR) -> dict[str, VehicleParams]:
     presets: dict[str, VehicleParams] = {}
-    for path in sorted(PRESET_DIR.glob("*.yaml")):
+    for path in sorted(folder.glob("*.yaml")):
         params = read_vehicle_file(path)
         if params.preset != path.stem:
             raise VehicleFileError(str(path), "name", f"{params.preset!r} must be the file's "
@@ -72,7 +75,11 @@ def _load_presets() -> dict[str, VehicleParams]:
 
 
 PRESETS: dict[str, VehicleParams] = _load_presets()
-"""The shipped vehicles by name, in file-name order."""
+"""The shipped simulated vehicles by name, in file-name order."""
+KIT_VEHICLES: dict[str, VehicleParams] = _load_presets(PRESET_DIR / "kits")
+"""The CAN kits' default vehicles by name (a scenario or ``--vehicle`` names them as presets)."""
+SHIPPED: dict[str, VehicleParams] = {**PRESETS, **KIT_VEHICLES}
+"""Every vehicle the package ships, by name."""
 
 
 def names_a_file(spec: Any) -> bool:
@@ -111,19 +118,19 @@ def vehicle_from_spec(spec: Any, base_dir: str | Path = ".") -> VehicleParams:
     if "file" in spec:
         path = vehicle_path(overrides.pop("file"), base_dir)
         base = read_vehicle_file(path)
-        if base.preset in PRESETS and base != PRESETS[base.preset]:
+        if base.preset in SHIPPED and base != SHIPPED[base.preset]:
             raise VehicleFileError(str(path), "name", _shipped_name(base.preset))
         return with_overrides(base, overrides)
     if "preset" in spec:
         name = overrides.pop("preset")
-        if not isinstance(name, str) or name not in PRESETS:
+        if not isinstance(name, str) or name not in SHIPPED:
             raise VehicleSpecError("preset", f"unknown vehicle preset {name!r:.40} (known: "
-                                             f"{', '.join(PRESETS)}; a vehicle file is a path "
+                                             f"{', '.join(SHIPPED)}; a vehicle file is a path "
                                              "ending in .yaml)")
-        return with_overrides(PRESETS[name], overrides)
+        return with_overrides(SHIPPED[name], overrides)
     if "name" in spec:
         params = vehicle_from_data(spec)
-        if params.preset in PRESETS and params != PRESETS[params.preset]:
+        if params.preset in SHIPPED and params != SHIPPED[params.preset]:
             raise VehicleSpecError("name", _shipped_name(params.preset))
         return params
     raise VehicleSpecError("", "a mapping needs preset: NAME or file: PATH (then the parameters "

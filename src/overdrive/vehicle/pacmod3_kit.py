@@ -57,7 +57,7 @@ import msgspec
 
 from overdrive.dynamics.steering_ratio import road_wheel_rad, steering_wheel_rad
 from overdrive.dynamics.vehicle_params import VehicleParams
-from overdrive.kits.frames import CanFrame, KitDecodeError, KitEncodeError, UnknownFrame
+from overdrive.kits.frames import CanFrame, KitEncodeError, UnknownFrame
 from overdrive.kits.pacmod3 import (
     COUNTER_MODULO,
     GEAR_COMMANDS,
@@ -199,6 +199,9 @@ class KitEvents:
     override_clears: list[tuple[str, float]] = field(default_factory=list)
     faults: list[tuple[str, float]] = field(default_factory=list)
     refused_edges: list[tuple[str, float, str]] = field(default_factory=list)
+    # at each enable edge: the brake the kit was applying then (enabled brake command, else 0)
+    brake_at_edges: list[float] = field(default_factory=list)
+    first_throttle_s: float | None = None   # first step an enabled accel command gave throttle
 
 
 class Truth(msgspec.Struct, frozen=True):
@@ -330,7 +333,7 @@ class Pacmod3Kit:
         except UnknownFrame:
             self._bad("unknown_id")
             return
-        except KitDecodeError as e:
+        except ValueError as e:   # KitDecodeError, or anything else a decoder may raise
             self._bad("bad_complement" if "complement" in str(e) else "malformed")
             return
         name = type(msg).__name__
@@ -398,6 +401,10 @@ class Pacmod3Kit:
             if why:
                 self.events.refused_edges.append((system, now_s, why))
             else:
+                brake = self.systems["brake"]
+                self.events.brake_at_edges.append(   # before this edge takes effect
+                    brake.command.brake_ratio if brake.enabled and brake.command is not None
+                    else 0.0)
                 st.enabled = True
                 self.events.enable_edges.append((system, now_s))
         st.command = msg
@@ -498,6 +505,8 @@ class Pacmod3Kit:
         accel, brk, steer, shift = (systems[s] for s in SYSTEMS)
         if accel.enabled and accel.command is not None:
             throttle = accel_effort(accel.command.accel_ratio)
+            if throttle > 0.0 and self.events.first_throttle_s is None:
+                self.events.first_throttle_s = now_s
         if brk.enabled and brk.command is not None:
             brake = brake_effort(brk.command.brake_ratio)
         operator_accel = self._operator_input("accel", now_s)
@@ -649,7 +658,10 @@ class Pacmod3Kit:
             "odometer_m": self.plant.odometer_m,
             "frames_seen": dict(sorted(self.frames_seen.items())),
             "bad_frames": dict(sorted(self.bad_frames.items())),
-            "enable_edges": [{"system": s, "t_s": t} for s, t in ev.enable_edges],
+            "enable_edges": [{"system": s, "t_s": t, "brake_ratio": b}
+                             for (s, t), b in zip(ev.enable_edges, ev.brake_at_edges,
+                                                  strict=True)],
+            "first_throttle_s": ev.first_throttle_s,
             "refused_edges": [{"system": s, "t_s": t, "why": w} for s, t, w in ev.refused_edges],
             "disables": [{"system": s, "t_s": t, "why": w} for s, t, w in ev.disables],
             "timeouts": [{"system": s, "t_s": t} for s, t in ev.timeouts],
