@@ -103,9 +103,11 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
                 tests/safety/test_unasked_stops.py::test_the_judge_counts_a_speed_server_restart_or_a_rise_of_its_unasked_stops \
                 tests/safety/test_unasked_stops.py::test_a_notice_with_a_hostile_code_never_crashes_the_judge_nor_stops_it
 
-# Wall-clock and OpenJAUS interop tests (real processes, sockets, fixed ports) run serially
-# after the parallel suite; the interop ones build OpenJAUS once into ~/.cache/overdrive
-# (tests/interop/conftest.py) and skip, saying why, without ../shared/interop/openjaus.
+# Wall-clock tests (real processes, sockets, fixed ports; the OpenJAUS runs among them carry
+# both `interop` and `wallclock`) run serially after the parallel suite. The OpenJAUS codec
+# comparison (pipes to ojcodec, no clock, no port) is `interop` only and runs in the parallel
+# phase, which also builds OpenJAUS once into ~/.cache/overdrive on a cold cache
+# (tests/interop/conftest.py); interop tests skip, saying why, without ../shared/interop/openjaus.
 # Serially on purpose: on a host loaded by others (load 12 on 2 cores, 2026-11-26) two workers
 # here, with launches and xgv-sim runs kept one at a time, failed real-time runs beside a launch
 # (an OpenJAUS drive saw a software pause; a 5 %-loss MOVE faulted; a flood RTT of 55 ms over
@@ -113,8 +115,8 @@ SAFETY_TESTS := tests/test_modes.py tests/safety/test_gate.py tests/safety/test_
 # scheduler of their own: xdist 3.8's --dist loadgroup groups nothing under pytest 9.2, whose
 # node ids no longer read the item._nodeid it sets.)
 test: check-env lint
-	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock and not interop"
-	$(PY) -m pytest -p no:cacheprovider -m "wallclock or interop" -rs
+	$(PY) -m pytest -n 2 -p no:cacheprovider -m "not wallclock"
+	$(PY) -m pytest -p no:cacheprovider -m wallclock -rs
 	@$(MAKE) --no-print-directory coverage-gate
 
 # The whole-run variant sweeps (tests marked `variants`) in full (`make test` runs one case in four

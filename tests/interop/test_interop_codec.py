@@ -20,7 +20,7 @@ from oj_messages import STANDARD, build, generate, to_ojcodec
 from overdrive.jaus import Message, decode, encode
 from overdrive.jaus.layout import PresenceLayout
 
-pytestmark = pytest.mark.interop
+pytestmark = pytest.mark.interop   # pipes, no clock or port: the parallel phase (Makefile)
 
 MIN_MESSAGES = 5000  # issue 19 acceptance: ">= 5,000 generated messages"
 OJCODEC_TIMEOUT_S = 120

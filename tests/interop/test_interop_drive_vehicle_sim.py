@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 from processes import VENV_BIN, openjaus_vehicle_sim
 
-pytestmark = pytest.mark.interop
+pytestmark = [pytest.mark.interop, pytest.mark.wallclock]   # real processes and time: serial
 
 PROJECT = Path(__file__).resolve().parents[2]
 SCENARIO = PROJECT / "scenarios" / "openjaus-wrench-drive.yaml"

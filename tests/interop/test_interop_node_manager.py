@@ -28,7 +28,7 @@ from overdrive.jaus import JausDecodeError, JausId, TerminateServiceConnection, 
 from overdrive.run.xgv_sim import XgvServer
 from tests.xgv.xgv_helpers import ready_scenario, serving
 
-pytestmark = pytest.mark.interop
+pytestmark = [pytest.mark.interop, pytest.mark.wallclock]   # real processes and time: serial
 
 XGV = ("127.0.0.1", 3794)
 NM_HOST = "127.0.0.2"

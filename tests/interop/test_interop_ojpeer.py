@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from processes import free_udp_port, xgv_sim
 
-pytestmark = pytest.mark.interop
+pytestmark = [pytest.mark.interop, pytest.mark.wallclock]   # real processes and time: serial
 
 WRENCH_S = 2.0      # Set Wrench Effort at 20 Hz for this long: enough to move (> 0.5 m/s)
 OJPEER_TIMEOUT_S = 60.0  # ojpeer's own pumps add up to ~12 s + WRENCH_S

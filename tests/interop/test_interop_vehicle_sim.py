@@ -24,7 +24,7 @@ from overdrive.runtime.xgv_link import UdpPort
 from overdrive.scenario.vehicles import PRESETS
 from overdrive.vehicle.xgv_client import REGISTRATION_SETTLE_S, XgvClient, XgvClientConfig
 
-pytestmark = pytest.mark.interop
+pytestmark = [pytest.mark.interop, pytest.mark.wallclock]   # real processes and time: serial
 
 NODE_JUDP = ("127.0.0.2", 3794)
 CLIENT_BIND = ("127.0.0.3", 3794)
