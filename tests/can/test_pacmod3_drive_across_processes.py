@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from mcap.reader import make_reader
 
 from overdrive.runtime.can_hub import CanHub
 
@@ -95,7 +96,7 @@ def rig(tmp_path):
 
 def test_engage_brake_first_commands_at_30_hz_and_a_10_m_move_ends_within_0_2_m(rig) -> None:
     r = rig()
-    r.run_drive({"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}, 18.0)
+    r.run_drive({"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}, 13.0)
     _, err = r.drive.communicate(timeout=90)
     commands, truths = r.records()
     systems = [c for c in commands if c["cmd"] in SYSTEM_CMDS]
@@ -118,6 +119,15 @@ def test_engage_brake_first_commands_at_30_hz_and_a_10_m_move_ends_within_0_2_m(
     assert odometer == pytest.approx(10.0, abs=0.2), err.decode()[-2000:]
     summary = json.loads((r.out / "summary.json").read_text())
     assert summary["link"]["engage_state"] == "engaged"
+    can = json.loads((r.out / "can.json").read_text())
+    assert can["dbc"]["sha256"] and can["python_can"]["interface"] == "socketcand"
+    assert yaml.safe_load((r.out / "vehicle.yaml").read_text())["name"] == "lexus-rx450h"
+    directions = set()
+    with (r.out / "run.mcap").open("rb") as f:
+        for _, _, message in make_reader(f).iter_messages(topics=["can/frames"]):
+            directions |= {x["direction"] for x in json.loads(message.data)["frames"]}
+    assert directions == {"rx", "tx"}, "raw frames both ways in run.mcap"
+    assert not (r.out / "engage.json").exists(), "the endpoint goes with the drive"
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGSTOP], ids=["kill-9", "sigstop"])
@@ -162,13 +172,15 @@ def test_an_override_disengages_no_planner_command_re_engages_the_operator_does(
     assert set(truths[-1]["truth"]["enabled"]) == {"accel", "brake", "steering", "shift"}
     cleared = [c for c in commands if c["t"] > pressed_t + 1.0 and c.get("clear_override")]
     assert cleared and cleared[0]["t"] < engage_t, "re-engaged through the clear-override edge"
-    r.drive.wait(60)
 
 
-def test_a_curve_turns_right_and_a_silent_planner_stops_it_engaged(rig) -> None:
+@pytest.mark.parametrize(("curvature_1pm", "silent"), [(0.05, "move"), (-0.05, "driving")],
+                         ids=["right-move", "left-driving"])
+def test_a_curve_turns_the_way_asked_and_a_silent_planner_stops_it_engaged(
+        rig, curvature_1pm, silent) -> None:
     r = rig()
-    r.run_drive({"distance_m": 40, "maxspeed_mps": 3, "curvature_1pm": 0.05}, 16.0,
-                extra=({"at_s": 10.0, "stall": {"node": "move", "for_s": 5.9}},))
+    r.run_drive({"distance_m": 40, "maxspeed_mps": 3, "curvature_1pm": curvature_1pm}, 16.0,
+                extra=({"at_s": 10.0, "stall": {"node": silent, "for_s": 5.9}},))
     r.drive.communicate(timeout=90)
     commands, truths = r.records()
     brakes = [c for c in commands if c["cmd"] == "BrakeCmd"]
@@ -177,6 +189,7 @@ def test_a_curve_turns_right_and_a_silent_planner_stops_it_engaged(rig) -> None:
     engaged = [t for t in truths if len(t["truth"]["enabled"]) == 4]
     last = engaged[-1]
     assert last["t"] >= brakes[-2]["t"] - 0.1
-    assert last["truth"]["heading_rad"] < -0.1, "curvature +0.05 turns right (clockwise)"
+    # curvature positive turns right: heading clockwise (negative); negative turns left
+    assert last["truth"]["heading_rad"] * curvature_1pm < 0 and abs(last["truth"]["heading_rad"]) > 0.1
     assert abs(last["truth"]["speed_mps"]) < 0.05, "stopped while the planner was silent"
     assert last["truth"]["odometer_m"] < 35.0, "short of the MOVE's end"
