@@ -54,7 +54,8 @@ def can_record(config: CanConfig, codec: Pacmod3Codec, bring_up: str | None,
                engage: bool) -> dict[str, Any]:
     """``can.json``: what the drive talked to and how."""
     return {"kit": "pacmod3", "dialect": codec.dialect, "dbc": {
-        "path": str(codec.dbc_path), "version": codec.dbc_version, "sha256": codec.dbc_sha256},
+        "path": str(codec.dbc_path), "version": codec.dbc_version, "sha256": codec.dbc_sha256,
+        "files": [{"path": path, "sha256": digest} for path, digest in codec.dbc_files]},
         "python_can": config.to_json(), "bring_up": bring_up, "engage_at_start": engage}
 
 
