@@ -41,8 +41,6 @@ def run(tmp_path: Path, argv: list[str], env: dict[str, str]):
     return result, raised
 
 
-@pytest.mark.xfail(strict=True, reason="resolve_can_config reads CAN_CONFIG outside its try: "
-                   "json.JSONDecodeError / TypeError escape as a traceback")
 @pytest.mark.parametrize("command", ["drive", "can-monitor", "kit-sim"])
 @pytest.mark.parametrize("broken", list(BROKEN_ENV))
 def test_a_broken_can_config_variable_is_a_clear_error(tmp_path, command, broken) -> None:
@@ -53,8 +51,6 @@ def test_a_broken_can_config_variable_is_a_clear_error(tmp_path, command, broken
     assert result.exit_code != 0 and "CAN_CONFIG" in result.output
 
 
-@pytest.mark.xfail(strict=True, reason="configparser's errors (no section header, a section "
-                   "twice) are not caught: a traceback")
 @pytest.mark.parametrize("command", ["drive", "can-monitor", "kit-sim"])
 @pytest.mark.parametrize("broken", list(BROKEN_FILES))
 def test_a_broken_can_conf_file_is_a_clear_error(tmp_path, command, broken) -> None:
@@ -66,8 +62,6 @@ def test_a_broken_can_conf_file_is_a_clear_error(tmp_path, command, broken) -> N
     assert result.exit_code != 0 and "can.conf" in result.output
 
 
-@pytest.mark.xfail(strict=True, reason="a non-finite number in CAN_CONFIG reaches python-can's "
-                   "socketcand and raises TypeError")
 def test_a_nan_port_in_can_config_is_a_clear_error(tmp_path) -> None:
     """Measured 2026-11-26: CAN_CONFIG='{"port": NaN, ...}' (json.loads takes NaN) ->
     TypeError 'Port config must be string or integer!' traceback, exit 1."""
@@ -78,8 +72,6 @@ def test_a_nan_port_in_can_config_is_a_clear_error(tmp_path) -> None:
     assert result.exit_code != 0
 
 
-@pytest.mark.xfail(strict=True, reason="a config-file value's source lists python-can's four "
-                   "candidate files, not the one that supplied it")
 def test_a_stale_can_conf_value_names_the_file_it_came_from(tmp_path) -> None:
     """Measured 2026-11-26: with HOME=tmp and ~/can.conf supplying bitrate, the drive prints
     and can.json records 'config file [default] (~/can.conf, /etc/can.conf, ~/.can,

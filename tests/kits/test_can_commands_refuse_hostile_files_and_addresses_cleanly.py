@@ -18,8 +18,6 @@ SHARED_ID = {   # (message moved, onto the id of): a report onto a report, a rep
 }
 
 
-@pytest.mark.xfail(strict=True, reason="cantools only warns when two messages share an id; the "
-                   "codec keeps the last one in its id table and loads the DBC")
 @pytest.mark.parametrize("case", list(SHARED_ID))
 def test_a_dbc_with_two_used_messages_on_one_id_is_refused(tmp_path, case) -> None:
     """Measured 2026-11-26: both DBCs load (11 ids instead of 12): frames on 0x200 decode as
@@ -32,8 +30,6 @@ def test_a_dbc_with_two_used_messages_on_one_id_is_refused(tmp_path, case) -> No
         Pacmod3Codec("v3", dbc)
 
 
-@pytest.mark.xfail(strict=True, reason="cantools' ValueError for a file suffix it does not "
-                   "know is not caught by can-monitor or can-log replay")
 @pytest.mark.parametrize("command", ["can-monitor", "can-log replay"])
 def test_a_dbc_flag_naming_a_file_that_is_not_a_dbc_is_a_clear_error(tmp_path, command) -> None:
     """Measured 2026-11-26: --dbc FILE.log -> ValueError "expected database format 'arxml',
@@ -49,8 +45,6 @@ def test_a_dbc_flag_naming_a_file_that_is_not_a_dbc_is_a_clear_error(tmp_path, c
     assert result.exit_code == 2, result.output
 
 
-@pytest.mark.xfail(strict=True, reason="python-can's BLFParseError is not among the errors "
-                   "can-log replay stops on")
 def test_a_blf_log_that_is_garbage_is_a_clear_error(tmp_path) -> None:
     """Measured 2026-11-26: 500 bytes that are not BLF, named .blf -> BLFParseError
     traceback, exit 1 (a garbage .log or .asc is reported cleanly, exit 2)."""
@@ -62,7 +56,6 @@ def test_a_blf_log_that_is_garbage_is_a_clear_error(tmp_path) -> None:
     assert result.exit_code != 0
 
 
-@pytest.mark.xfail(strict=True, reason="can-hub lets the bind's OSError out as a traceback")
 @pytest.mark.parametrize("host", ["192.0.2.1", "no-such-host.invalid"])
 def test_a_hub_address_it_cannot_listen_on_is_a_clear_error(host) -> None:
     """Measured 2026-11-26: --host 8.8.8.8 (not this machine; 192.0.2.1 here) -> OSError

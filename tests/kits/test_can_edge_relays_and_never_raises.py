@@ -150,14 +150,14 @@ def test_explicit_flags_win_and_every_key_names_its_source(monkeypatch, tmp_path
     assert (config.interface, config.channel, config.options["bitrate"]) == (
         "virtual", "from_env", 250000)
     assert config.sources["channel"] == "environment"
-    assert config.sources["interface"].startswith("config file [default]")
-    assert config.sources["bitrate"].startswith("config file [default]")
+    conf = tmp_path / "can.conf"
+    assert config.sources["interface"] == config.sources["bitrate"] == f"config file {conf} [default]"
     flagged = resolve_can_config(channel="from_flag", bitrate=500000)
     assert (flagged.channel, flagged.options["bitrate"]) == ("from_flag", 500000)
     assert flagged.sources["channel"] == flagged.sources["bitrate"] == "flag"
     monkeypatch.delenv("CAN_CHANNEL")
     assert resolve_can_config(context="lab").channel == "lab_file"
-    assert "bitrate = 250000 (config file [default]" in resolve_can_config().describe()
+    assert f"bitrate = 250000 (config file {conf} [default])" in resolve_can_config().describe()
 
 
 def test_can_config_json_in_the_environment_supplies_socketcand_host_and_port(monkeypatch,

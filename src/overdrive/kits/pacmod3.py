@@ -307,8 +307,8 @@ class Pacmod3Codec:
         self.dbc_path = Path(dbc_path) if dbc_path is not None else SHIPPED_DBC
         try:
             db = cantools.database.load_file(str(self.dbc_path), strict=True)
-        except (OSError, cantools.database.UnsupportedDatabaseFormatError,
-                cantools.database.errors.Error) as e:
+        except (OSError, ValueError, cantools.database.UnsupportedDatabaseFormatError,
+                cantools.database.errors.Error) as e:   # ValueError: a suffix cantools lacks
             raise KitError(f"{self.dbc_path}: cannot read as a DBC: {e}") from e
         self.dbc_sha256 = _sha256(self.dbc_path)
         self.dbc_version = db.version or self.dbc_path.stem
@@ -341,6 +341,10 @@ class Pacmod3Codec:
                        if sig not in names and sig not in _OPTIONAL_SIGNALS]
             if missing:
                 raise KitError(f"{self.dbc_path}: {m.message} lacks {', '.join(missing)}")
+            if message.frame_id in self._by_id:   # cantools only warns about a shared id
+                raise KitError(f"{self.dbc_path}: {m.message} and "
+                               f"{self._by_id[message.frame_id][0].message} share CAN id "
+                               f"0x{message.frame_id:X}: one frame cannot be both")
             self._by_type[m.cls] = (m, message)
             self._by_id[message.frame_id] = (m, message)
             fields = tuple((f, sig) for f, sig in m.fields if sig in names)

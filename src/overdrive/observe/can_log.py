@@ -181,8 +181,8 @@ def replay_can_log(path: str | Path, codec: Pacmod3Codec,
         raise CanLogError(f"{path}: no such file")
     try:
         reader = can.LogReader(str(path))
-    except (ValueError, OSError) as e:
-        raise CanLogError(f"{path}: {e}") from e
+    except Exception as e:   # python-can's readers raise their parsers' own (BLFParseError)
+        raise CanLogError(f"{path}: {type(e).__name__}: {e}") from e
     with reader:
         messages = iter(reader)
         while True:

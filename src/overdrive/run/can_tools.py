@@ -28,7 +28,11 @@ def cast_option(text: str) -> Any:
 
 def serve_hub(host: str, port: int, say: Callable[[str], Any]) -> int:
     """Serve a socketcand-protocol hub in the foreground until SIGINT / SIGTERM."""
-    hub = CanHub(host, port)
+    try:
+        hub = CanHub(host, port)
+    except OSError as e:   # not this machine's address, a name that does not resolve, port taken
+        say(f"error: can-hub cannot listen on {host}:{port}: {e}")
+        return 2
     say(f"can-hub: socketcand protocol on {hub.host}:{hub.port}; python-can: "
         f"interface=socketcand host={hub.host} port={hub.port} channel=can0")
     signal.signal(signal.SIGTERM, lambda *_: hub.stop())

@@ -13,11 +13,15 @@ as a fault; they never raise.
 
 from __future__ import annotations
 
+import configparser
 import contextlib
+import json
 import math
+import os
 import socket
 import time
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, Final
 
 import msgspec
@@ -70,13 +74,43 @@ class CanConfig(msgspec.Struct, frozen=True, kw_only=True):
 
 
 def _file_sources(context: str | None) -> list[tuple[str, dict[str, Any]]]:
+    """Each of python-can's config files that exists, last read first (a later file replaces
+    an earlier one's values, as python-can reads them), per section: ``(source, values)``."""
     found: list[tuple[str, dict[str, Any]]] = []
-    files = ", ".join(can.util.CONFIG_FILES)
-    if context:
-        found.append((f"config file [{context}] ({files})",
-                      dict(can.util.load_file_config(None, context))))
-    found.append((f"config file [default] ({files})", dict(can.util.load_file_config(None))))
+    sections = [context, "default"] if context else ["default"]
+    paths = [Path(os.path.expanduser(p)) for p in can.util.CONFIG_FILES]
+    for section in sections:
+        for path in reversed(paths):
+            if not path.is_file():
+                continue
+            parser = configparser.ConfigParser()
+            try:
+                parser.read(path, encoding="utf-8")
+            except (configparser.Error, UnicodeDecodeError, OSError) as e:
+                raise CanConfigError(f"python-can config file {path}: {one_line(e)}") from e
+            if parser.has_section(section):
+                found.append((f"config file {path} [{section}]", dict(parser.items(section))))
     return found
+
+
+def one_line(error: BaseException) -> str:
+    """An exception's text on one line (configparser's span several)."""
+    return " ".join(str(error).split())
+
+
+def _check_environment() -> None:
+    """python-can reads ``CAN_CONFIG`` with ``json.loads`` and merges it as a mapping: say what
+    is wrong with it before python-can raises (a traceback)."""
+    for key, value in os.environ.items():
+        if not key.startswith("CAN_CONFIG"):
+            continue
+        try:
+            parsed = json.loads(value)
+        except ValueError as e:
+            raise CanConfigError(f"{key} is not JSON: {e}") from e
+        if not isinstance(parsed, dict):
+            raise CanConfigError(f"{key} must be a JSON object of python-can options, "
+                                 f"got {type(parsed).__name__}")
 
 
 def resolve_can_config(interface: str | None = None, channel: str | None = None,
@@ -89,16 +123,18 @@ def resolve_can_config(interface: str | None = None, channel: str | None = None,
     given: dict[str, Any] = {k: v for k, v in (("interface", interface), ("channel", channel),
                                                ("bitrate", bitrate)) if v is not None}
     given.update({k: v for k, v in options.items() if v is not None})
+    _check_environment()
     layers: list[tuple[str, dict[str, Any]]] = [("flag", dict(given)), ("can.rc", dict(can.rc))]
     if context:
         layers.append((f"environment (context {context})",
                        dict(can.util.load_environment_config(context))))
     layers.append(("environment", dict(can.util.load_environment_config())))
+    layers += _file_sources(context)
     try:
-        layers += _file_sources(context)
         merged = dict(can.util.load_config(config=dict(given), context=context))
-    except (can.CanInterfaceNotImplementedError, ValueError) as e:
-        raise CanConfigError(f"CAN configuration: {e}") from e
+    except (can.CanInterfaceNotImplementedError, ValueError, TypeError,
+            configparser.Error) as e:
+        raise CanConfigError(f"CAN configuration: {one_line(e)}") from e
     sources: dict[str, str] = {}
     for key in merged:
         for name, layer in layers:
@@ -119,6 +155,10 @@ def resolve_can_config(interface: str | None = None, channel: str | None = None,
         raise CanConfigError(f"no CAN channel for {found_interface}: give --can-channel or "
                              f"set CAN_CHANNEL")
     options_out = {k: v for k, v in merged.items() if v is not None}
+    for key, value in options_out.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise CanConfigError(f"CAN option {key} = {value} ({sources.get(key, '?')}): "
+                                 f"not a finite number")
     return CanConfig(interface=str(found_interface), channel=str(found_channel),
                      options=options_out, sources=sources)
 
@@ -132,11 +172,32 @@ def _check_reachable(config: CanConfig) -> None:
     if host is None or port is None:
         raise CanConfigError("socketcand needs host and port (CAN_CONFIG='{\"host\": "
                              "\"127.0.0.1\", \"port\": 29536}' or the config file)")
+    if isinstance(port, bool) or not isinstance(port, int | str):
+        raise CanConfigError(f"socketcand port {port!r}: expected an integer")
     try:
-        with socket.create_connection((str(host), int(port)), timeout=CONNECT_CHECK_TIMEOUT_S):
-            pass
+        port_number = int(port)
+    except ValueError as e:
+        raise CanConfigError(f"socketcand port {port!r}: expected an integer") from e
+    if not 0 < port_number < 65536:
+        raise CanConfigError(f"socketcand port {port_number}: outside 1..65535")
+    try:
+        with socket.create_connection((str(host), port_number),
+                                      timeout=CONNECT_CHECK_TIMEOUT_S) as probe:
+            greeting = b""
+            while not greeting.endswith(b">") and len(greeting) < 64:
+                chunk = probe.recv(64)
+                if not chunk:
+                    break
+                greeting += chunk
+    except TimeoutError as e:
+        raise CanConfigError(f"{host}:{port_number} accepts connections but says nothing: not "
+                             f"a socketcand server (no '< hi >' within "
+                             f"{CONNECT_CHECK_TIMEOUT_S:g} s)") from e
     except OSError as e:
-        raise CanConfigError(f"no socketcand server at {host}:{port}: {e}") from e
+        raise CanConfigError(f"no socketcand server at {host}:{port_number}: {e}") from e
+    if greeting.strip() != b"< hi >":
+        raise CanConfigError(f"{host}:{port_number} is not a socketcand server (it said "
+                             f"{greeting[:40]!r}, expected '< hi >')")
 
 
 class CanErrors:
