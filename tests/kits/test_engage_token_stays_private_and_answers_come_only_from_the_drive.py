@@ -18,8 +18,6 @@ from overdrive.cli.main import main
 from overdrive.runtime.can_link import ENGAGE_FILE, EngageEndpoint, request_engage
 
 
-@pytest.mark.xfail(strict=True, reason="os.open(O_CREAT | O_TRUNC, 0o600) keeps the mode of a "
-                   "file already there: the token lands in a world-readable file")
 def test_a_stale_world_readable_engage_file_does_not_expose_the_token(tmp_path) -> None:
     """Measured 2026-11-26: engage.json created beforehand with mode 0644 (a run folder
     reused, or prepared by another user in a shared /tmp folder) is still 0644 after the
@@ -35,8 +33,6 @@ def test_a_stale_world_readable_engage_file_does_not_expose_the_token(tmp_path) 
         endpoint.close()
 
 
-@pytest.mark.xfail(strict=True, reason="the endpoint file is opened without O_NOFOLLOW / O_EXCL: "
-                   "a symlink there sends the token elsewhere, and it stays after the drive")
 def test_an_engage_file_symlink_is_not_followed(tmp_path) -> None:
     """Measured 2026-11-26: RUN_DIR/engage.json a symlink to OTHER/leak: the token is written
     to OTHER/leak, which remains after the drive ends (only the link is removed)."""
@@ -53,8 +49,6 @@ def test_an_engage_file_symlink_is_not_followed(tmp_path) -> None:
     assert not (other / "leak").exists(), "the token outlives the drive outside its run folder"
 
 
-@pytest.mark.xfail(strict=True, reason="request_engage accepts the first datagram from any "
-                   "sender as the drive's answer")
 def test_an_answer_from_another_process_is_not_taken_for_the_drives(tmp_path) -> None:
     """Measured 2026-11-26: a local process that is not the drive (it learns the engage
     client's port from /proc/net/udp) answers {"ok": true, "state": "engaged"} first and
@@ -84,8 +78,6 @@ def test_an_answer_from_another_process_is_not_taken_for_the_drives(tmp_path) ->
         forger.close()
 
 
-@pytest.mark.xfail(strict=True, reason="a port outside 0..65535 in engage.json raises "
-                   "OverflowError from sendto, not caught by `overdrive engage`")
 @pytest.mark.parametrize("port", [70000, -5])
 def test_an_engage_file_with_an_impossible_port_is_a_clear_error(tmp_path, port) -> None:
     """Measured 2026-11-26: engage.json with port 70000 or -5 -> OverflowError traceback,

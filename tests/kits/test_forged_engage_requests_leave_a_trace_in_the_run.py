@@ -50,8 +50,6 @@ def counts(value, path=""):
         yield path, value
 
 
-@pytest.mark.xfail(strict=True, reason="EngageEndpoint.refused is counted but never read: "
-                   "summary.json's link holds no trace of the forged requests")
 def test_forged_engage_requests_are_counted_in_the_summary(tmp_path) -> None:
     """Measured 2026-11-26: 5 requests with a wrong token during a 3 s drive waiting
     disengaged: the kit stayed disabled (held), and summary.json's link has no count that

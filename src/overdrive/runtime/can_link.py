@@ -46,11 +46,21 @@ class EngageEndpoint:
         self.refused = 0
         self.path: Path | None = None
         if run_dir is not None:
+            # A fresh file (O_EXCL, no symlink followed, 0600 from its creation) renamed over
+            # the name: a stale engage.json of another mode, or a symlink planted there, is
+            # replaced, never written through.
             self.path = Path(run_dir) / ENGAGE_FILE
-            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                json.dump({"host": LOOPBACK, "port": self.port, "token": self.token,
-                           "pid": os.getpid()}, f)
+            fresh = self.path.with_name(f".{ENGAGE_FILE}.{secrets.token_hex(8)}")
+            fd = os.open(fresh, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+            try:
+                with os.fdopen(fd, "w", encoding="utf-8") as f:
+                    json.dump({"host": LOOPBACK, "port": self.port, "token": self.token,
+                               "pid": os.getpid()}, f)
+                os.replace(fresh, self.path)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    fresh.unlink()
+                raise
 
     def requests(self) -> list[tuple[str, Any]]:
         """(act, sender address) of each valid request waiting."""
@@ -98,13 +108,16 @@ def request_engage(run_dir: str | Path, act: str = "engage", timeout_s: float = 
     Raises ``OSError`` (no drive: no endpoint file, no answer) or ``ValueError`` (a bad file)."""
     info = json.loads((Path(run_dir) / ENGAGE_FILE).read_text(encoding="utf-8"))
     if not (isinstance(info, dict) and info.get("host") == LOOPBACK
-            and isinstance(info.get("port"), int) and isinstance(info.get("token"), str)):
+            and type(info.get("port")) is int and 0 < info["port"] < 65536
+            and isinstance(info.get("token"), str)):
         raise ValueError(f"{run_dir}/{ENGAGE_FILE}: not an engage endpoint")
     sock = open_udp((LOOPBACK, 0), timeout_s=timeout_s)
     try:
-        sock.sendto(json.dumps({"token": info["token"], "act": act}).encode(),
-                    (LOOPBACK, info["port"]))
-        data, _ = sock.recvfrom(4096)
+        # Connected: the kernel delivers only the drive's port's datagrams, so another local
+        # process cannot answer in the drive's name.
+        sock.connect((LOOPBACK, info["port"]))
+        sock.send(json.dumps({"token": info["token"], "act": act}).encode())
+        data = sock.recv(4096)
     except TimeoutError as e:
         raise OSError(f"no answer from the drive in {timeout_s} s (is it running?)") from e
     finally:
@@ -122,9 +135,11 @@ class CanSensorNode:
     period_s = 0.01
     subscriptions: tuple[str, ...] = ()
 
-    def __init__(self, client: Pacmod3Client, port: CanPort) -> None:
+    def __init__(self, client: Pacmod3Client, port: CanPort,
+                 endpoint: EngageEndpoint | None = None) -> None:
         self.client = client
         self.port = port
+        self.endpoint = endpoint
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         for _stamp, frame in self.port.receive(0.0, now_s):
@@ -134,7 +149,9 @@ class CanSensorNode:
     def link_report(self) -> dict[str, Any]:
         """``summary.json`` ``link``: the client's counts, engage transitions and bus errors."""
         return {**self.client.report(), "bus": self.port.errors.as_dict(),
-                "frames_sent": self.port.sent, "frames_received": self.port.received}
+                "frames_sent": self.port.sent, "frames_received": self.port.received,
+                "engage_requests_refused": (self.endpoint.refused
+                                            if self.endpoint is not None else 0)}
 
 
 class CanCommandNode:
