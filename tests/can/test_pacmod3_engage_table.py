@@ -50,7 +50,8 @@ def test_next_state_follows_the_table_and_unlisted_events_change_nothing(state, 
 def test_only_the_operator_leaves_disengaged_or_a_latched_state() -> None:
     for state in ("disengaged", *LATCHED):
         ways_out = {e for e, to in TRANSITIONS[state].items() if to in ("engaging", "engaged")}
-        assert ways_out == {"engage_request"}, state
+        # stopping brakes to a standstill first: not even the operator engages from it
+        assert ways_out == (set() if state == "stopping" else {"engage_request"}), state
         assert "engaged" not in TRANSITIONS[state].values()
     for state in STATES:   # engaged is reached only through engaging's all_enabled
         for event, target in TRANSITIONS[state].items():
@@ -90,7 +91,7 @@ def test_classification_takes_the_most_urgent_event(state: str) -> None:
 
 
 @pytest.mark.parametrize("speed", [0.0, 0.05, ENGAGE_STANDSTILL_MPS, -ENGAGE_STANDSTILL_MPS])
-@pytest.mark.parametrize("state", ["disengaged", *sorted(LATCHED)])
+@pytest.mark.parametrize("state", ["disengaged", *sorted(LATCHED - {"stopping"})])
 def test_an_engage_at_a_standstill_is_accepted(state: str, speed: float) -> None:
     c = Conditions(engage_request=True, speed_mps=speed)
     assert refusal(state, c) is None

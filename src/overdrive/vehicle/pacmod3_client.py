@@ -84,10 +84,13 @@ from overdrive.vehicle.pacmod3_engage import (
     ENGAGE_BRAKE_RATIO,
     ENGAGE_STANDSTILL_MPS,
     LATCHED,
+    STANDSTILL_HOLD_S,
+    STOP_BRAKE_RATIO,
     Conditions,
     classify_event,
     next_state,
     refusal,
+    stop_bound_s,
 )
 
 COMMAND_PERIOD_S: Final = 1.0 / 30.0   # PACMod user CAN protocol: commands at 30 Hz
@@ -97,6 +100,8 @@ REPORT_TIMEOUT_S: Final = 3.5 * REPORT_PERIOD_S   # more than 3 report periods s
 EDGE_GRACE_S: Final = 3.5 * REPORT_PERIOD_S   # after an enable edge, override and timeout bits
                                        # still latched from before are the kit's old state:
                                        # counted only once it had this long to clear them
+FOREIGN_HOLD_S: Final = REPORT_TIMEOUT_S   # another node's command frame read within this: a
+                                       # fault while engaged, an engage refused
 PEDAL_STALE_S: Final = 0.1             # pedal commands older than this (10 of the speed
                                        # server's periods): the stack is lost, brake to a stop
 STALE_BRAKE_PCT: Final = 100.0         # as the XGV client's command-timeout brake
@@ -240,6 +245,10 @@ class Pacmod3Client:
         self.silent: str | None = None       # the report silent now (no sensors meanwhile)
         self.silence_seen: str | None = None   # a silence seen, until an engage clears it
         self.bus_errors: list[str] = []
+        self.foreign_s = -math.inf           # when another node's command frame was last read
+        self.standstill_s: float | None = None   # reported below standstill since (None: moving)
+        self.stop_deadline_s = math.inf      # stopping: disable by then whatever the reports say
+        self.ending = False                  # the drive is ending (``end_drive``)
 
     # ------------------------------------------------------------------ wire in
 
@@ -247,9 +256,8 @@ class Pacmod3Client:
         """Take one frame read at ``read_s``; garbage is counted, never acted on."""
         self.stats.frames_in += 1
         if frame.arbitration_id in self._command_ids and not frame.is_extended:
-            self.stats.foreign_commands += 1
-            self._notice("foreign_command", f"a PACMod command frame {frame} from another "
-                                            f"node on the bus: a second controller?")
+            self._foreign(read_s, f"a PACMod command frame {frame} from another node on the "
+                                  f"bus: a second controller?")
             return
         try:
             msg = self.codec.decode(frame)
@@ -278,8 +286,13 @@ class Pacmod3Client:
         elif isinstance(msg, WheelSpeedRpt):
             pass   # the vehicle speed report is used (the tyre radius is not in the vehicle file)
         else:   # a command type decoded from an id not ours (v14 global/supervisory)
-            self.stats.foreign_commands += 1
-            self._notice("foreign_command", f"{type(msg).__name__} from another node")
+            self._foreign(read_s, f"{type(msg).__name__} from another node")
+
+    def _foreign(self, read_s: float, reason: str) -> None:
+        """Another node commands the kit: a fault while it is seen (``FOREIGN_HOLD_S``)."""
+        self.stats.foreign_commands += 1
+        self.foreign_s = max(self.foreign_s, read_s)
+        self._notice("foreign_command", reason)
 
     def _speed(self, v: float, read_s: float) -> None:
         """Dead reckoning: position, heading and odometer integrated between speed reports,
@@ -297,6 +310,10 @@ class Pacmod3Client:
                 self.accel_mps2 = first_order_lag((v - self.speed_mps) / dt, self.accel_mps2,
                                                   self.config.accel_filter_s, dt)
         self.speed_mps, self.speed_s = v, read_s
+        if abs(v) >= ENGAGE_STANDSTILL_MPS:
+            self.standstill_s = None
+        elif self.standstill_s is None:
+            self.standstill_s = read_s
         self.seen_s["speed"] = read_s
         self.fresh = True
 
@@ -321,7 +338,8 @@ class Pacmod3Client:
 
     def _conditions(self, now_s: float) -> Conditions:
         g = self.global_rpt
-        fault_reason = self._fault_reason(now_s)
+        client_reason = self._client_fault_reason(now_s)
+        kit_reason = self._kit_fault_reason(now_s)
         override = any(getattr(self.system_rpt.get(s), "override_active", False)
                        and self._after_grace(s, now_s) for s in self.systems)
         every = all(self._after_grace(s, now_s) for s in self.systems)   # GLOBAL_RPT's bits:
@@ -329,10 +347,32 @@ class Pacmod3Client:
             override = True
         kit_timeout = bool(g is not None and g.usr_can_timeout and every)
         return Conditions(
-            engage_request=self.engage_pending, fault=fault_reason is not None,
+            engage_request=self.engage_pending, fault=kit_reason is not None,
+            client_fault=client_reason is not None, stopped=self._stopped(now_s),
+            drive_end=self.ending,
             override=override, kit_timeout=kit_timeout, all_enabled=self._all_enabled(now_s),
             engage_elapsed_s=now_s - self.state_s, speed_mps=self.speed_mps,
             reports_fresh=self._silent(now_s) is None and self._heard())
+
+    def _stopped(self, now_s: float) -> bool:
+        """Stopping is over: the kit reports a standstill held ``STANDSTILL_HOLD_S`` (reports
+        fresh), or the stop's time bound ran out."""
+        if self.state != "stopping":
+            return False
+        if now_s >= self.stop_deadline_s:
+            return True
+        return (self.standstill_s is not None and self._silent(now_s) is None
+                and now_s - self.standstill_s >= STANDSTILL_HOLD_S)
+
+    def end_drive(self, now_s: float) -> None:
+        """The drive ends (duration over, Ctrl-C, SIGTERM): engaged, the next frames brake to a
+        standstill (``stopping``) before the kit is let go; otherwise nothing to wait for."""
+        self.ending = True
+
+    @property
+    def releasing(self) -> bool:
+        """Still braking to a stop: the kit must not be let go yet."""
+        return self.state == "stopping" or (self.ending and self.state == "engaged")
 
     def _heard(self) -> bool:
         return all(k in self.seen_s for k in _REQUIRED)
@@ -352,16 +392,31 @@ class Pacmod3Client:
         return None
 
     def _fault_reason(self, now_s: float, *, kit_faults: bool = True) -> str | None:
-        """Why the kit cannot be driven now (None: no fault). The kit's own fault bits
-        (clearable with ``clear_faults``) count unless ``kit_faults`` is False (the operator's
-        engage, whose sequence sends ``clear_faults``), and while engaging only once the edges
-        had their grace (a fault that stays after the clear is a fault again)."""
+        """Why the kit cannot be driven now (None: no fault): the client's reason first."""
+        return self._client_fault_reason(now_s) or self._kit_fault_reason(now_s,
+                                                                          kit_faults=kit_faults)
+
+    def _client_fault_reason(self, now_s: float) -> str | None:
+        """A fault the CLIENT detects (the kit may still drive: engaged, it brakes to a stop):
+        a report silent, a bus error, another node's command frames, a gear ERROR report."""
         silent = self._silent(now_s) or self.silence_seen
         if silent is not None:
             self.silence_seen = silent   # seen between two frames: kept for the workflow
             return f"{silent} report silent for more than {self.config.report_timeout_s:.3f} s"
         if self.bus_errors:
             return f"CAN bus error: {self.bus_errors[-1]}"
+        if now_s - self.foreign_s <= FOREIGN_HOLD_S:
+            return "command frames from another node on the bus (a second controller?)"
+        shift = self.system_rpt.get("shift")
+        if shift is not None and shift.output_value == Gear.ERROR:
+            return "shift report: gear ERROR"
+        return None
+
+    def _kit_fault_reason(self, now_s: float, *, kit_faults: bool = True) -> str | None:
+        """A fault the KIT reports (it has let go of the vehicle). Its own fault bits
+        (clearable with ``clear_faults``) count unless ``kit_faults`` is False (the operator's
+        engage, whose sequence sends ``clear_faults``), and while engaging only once the edges
+        had their grace (a fault that stays after the clear is a fault again)."""
         g = self.global_rpt
         if g is not None and g.config_fault_active:
             return "GLOBAL_RPT: config fault (the kit's configuration: not cleared by commands)"
@@ -372,10 +427,7 @@ class Pacmod3Client:
             r = self.system_rpt.get(s)
             if kit_faults and r is not None and r.faulted and self._after_grace(s, now_s):
                 return f"{s} report claims a fault"
-        shift = self.system_rpt.get("shift")
-        if shift is not None and shift.output_value == Gear.ERROR:
-            return "shift report: gear ERROR"
-        if self.state == "engaged" and not (g is not None and g.usr_can_timeout):
+        if self.state in ("engaged", "stopping") and not (g is not None and g.usr_can_timeout):
             for s in self.systems:
                 r = self.system_rpt.get(s)
                 if r is not None and not r.enabled and not r.override_active:
@@ -390,9 +442,12 @@ class Pacmod3Client:
             self.silence_seen = None
         self.bus_errors.clear()
         c = self._conditions(now_s)
-        c = msgspec.structs.replace(c, fault=self._fault_reason(now_s, kit_faults=False)
+        c = msgspec.structs.replace(c, fault=self._kit_fault_reason(now_s, kit_faults=False)
                                     is not None)
         why = refusal(self.state, c)
+        detail = self._fault_reason(now_s, kit_faults=False)
+        if why is not None and c.fault and detail is not None:
+            why = f"{why}: {detail}"
         if why is not None:
             self.stats.engage_refused += 1
             self.notices.append(Notice(kind="rejected", source=self.name, code="engage_refused",
@@ -404,7 +459,7 @@ class Pacmod3Client:
     def _step_workflow(self, now_s: float) -> None:
         c = self._conditions(now_s)
         if self.engage_pending:   # the operator's engage clears the kit's own fault bits
-            c = msgspec.structs.replace(c, fault=self._fault_reason(now_s, kit_faults=False)
+            c = msgspec.structs.replace(c, fault=self._kit_fault_reason(now_s, kit_faults=False)
                                         is not None)
         event = classify_event(self.state, c)
         self.engage_pending = False
@@ -422,12 +477,21 @@ class Pacmod3Client:
             self.bus_errors.clear()
             self.silence_seen = None
             self._told.discard("state")
+        if self.state == "stopping":
+            self.stop_deadline_s = now_s + stop_bound_s(self.speed_mps)
         reason = {"override": "operator override: the kit hands the vehicle to its driver",
                   "kit_timeout": "the kit timed out our commands (usr_can_timeout)",
                   "fault": self._fault_reason(now_s) or "fault",
+                  "client_fault": f"{self._client_fault_reason(now_s) or 'fault'}: braking to "
+                                  f"a standstill engaged, then letting go",
+                  "drive_end": "the drive ends: braking to a standstill engaged, then letting go",
+                  "stopped": "stopped (or the stop's time bound ran out): letting go",
                   "engage_timeout": "the kit did not enable every system in time"}.get(event)
-        kind = "fault" if self.state in ("faulted", "timed_out") else (
-            "interruption" if self.state == "overridden" else "engage")
+        kind = "engage"
+        if self.state == "overridden":
+            kind = "interruption"
+        elif self.state in ("faulted", "timed_out", "stopping") and not self.ending:
+            kind = "fault"
         self.notices.append(Notice(kind=kind, source=self.name, code=f"pacmod3_{self.state}",
                                    reason=reason or f"{before} -> {self.state} ({event})"))
 
@@ -441,13 +505,31 @@ class Pacmod3Client:
             if topic == Topic.PEDALS and isinstance(msg, PedalCommand):
                 if self._allowed(msg, lim.pedal_sources, out):
                     self.pedals, self.pedals_s = msg, now_s
+                    _, _, why = gate_pedals(msg.throttle_pct, msg.brake_pct)
+                    if why and why != "throttle while braking":
+                        self._reject("pedals", f"pedal command {why}: gated "
+                                               f"(throttle 0 / brake 100 for NaN, clamped)", out)
             elif topic == Topic.STEER:
-                if self._allowed(msg, lim.steer_sources, out) and math.isfinite(msg.steer_pct):
+                if not self._allowed(msg, lim.steer_sources, out):
+                    continue
+                if math.isfinite(msg.steer_pct):
                     self.steer_cmd_pct = min(max(msg.steer_pct, -100.0), 100.0)
+                else:
+                    self._reject("steer", f"steer_pct {msg.steer_pct!r} not finite: the last "
+                                          f"command held", out)
             elif (topic == Topic.POWERTRAIN and isinstance(msg, PowertrainCommand)
                   and self._allowed(msg, lim.powertrain_sources, out)):
                 self.powertrain = msg
         return out
+
+    def _reject(self, code: str, reason: str, out: list | None = None) -> None:
+        """A command the client refused (in part): counted, and a rejection notice."""
+        self.stats.rejected_commands += 1
+        notice = Notice(kind="rejected", source=self.name, code=code, reason=reason)
+        if out is None:
+            self.notices.append(notice)
+        else:
+            out.append((Topic.NOTICE, notice))
 
     def _allowed(self, msg: Any, sources: frozenset[str], out: list) -> bool:
         if getattr(msg, "source", None) in sources:
@@ -496,7 +578,7 @@ class Pacmod3Client:
     def _enable(self, now_s: float) -> dict[str, bool]:
         """``enable`` per system for this frame, recording each system's edge."""
         enable = dict.fromkeys(SYSTEMS, False)
-        if self.state == "engaged":
+        if self.state in ("engaged", "stopping"):
             for s in self.systems:
                 enable[s] = True
         elif self.state == "engaging":
@@ -526,6 +608,8 @@ class Pacmod3Client:
         brake = brake_pct / 100.0
         if not engaged:
             accel, brake = 0.0, max(brake, ENGAGE_BRAKE_RATIO)
+        if self.state == "stopping":   # the client's own stop: full brake, still enabled
+            accel, brake = 0.0, STOP_BRAKE_RATIO
         if cfg.bring_up is not None:
             accel = min(accel, BRING_UP_ACCEL_RATIO_MAX)
             if abs(self.speed_mps) > BRING_UP_SPEED_MPS:
@@ -558,8 +642,9 @@ class Pacmod3Client:
         measured = self.system_rpt.get("steering")
         measured_pct = (self._pct_of_wheel(measured.output_value)
                         if measured is not None and math.isfinite(measured.output_value) else 0.0)
-        if not engaged or self.steer_sent_pct is None:
-            self.steer_sent_pct = measured_pct
+        holding = self.state == "stopping" and self.steer_sent_pct is not None
+        if not holding and (not engaged or self.steer_sent_pct is None):
+            self.steer_sent_pct = measured_pct   # stopping: the last position sent is held
         if engaged:
             self.steer_sent_pct, _ = gate_steer(self.steer_cmd_pct, self.steer_sent_pct,
                                                 self.limits, dt)
@@ -580,7 +665,11 @@ class Pacmod3Client:
         if shift is not None and shift.output_value in (0, 1, 2, 3, 4):
             current = Gear(shift.output_value)
         pt = self.powertrain
-        if pt is None or pt.gear not in self.gear_of:
+        if pt is None or self.state == "stopping":
+            return current
+        if pt.gear not in self.gear_of:
+            self._reject("unknown_gear", f"gear {pt.gear!r}: not a gear of "
+                                         f"{self.params.preset}; holding {current.name}")
             return current
         wanted = self.gear_of[pt.gear]
         if wanted == current:

@@ -13,7 +13,14 @@ running drive); no message of the stack (a MOVE, a pedal or steering command) is
   rides on every frame of the sequence, so a released override is cleared with the edge.
 - ``engaged``: the stack's commands go out, ``enable=1``. A planner gone quiet stays engaged:
   the stack's watchdogs brake it to a stop (disabling at speed would coast).
+- ``stopping``: a fault the CLIENT detected while engaged (reports silent, a bus error, another
+  node's command frames, a report it cannot act on): the kit still drives, so the client keeps
+  ``enable=1`` with the brake full on (``STOP_BRAKE_RATIO``), the throttle 0 and the steering
+  held, until the kit reports a standstill held ``STANDSTILL_HOLD_S`` or the time bound
+  (``stop_bound_s``: silent reports cannot say the vehicle stopped) runs out; then ``stopped``
+  disables and latches ``faulted``. Disabling at speed would coast (issue 32 review).
 - ``overridden`` / ``timed_out`` / ``faulted``: latched, commands go out with ``enable=0``.
+  ``faulted`` is entered directly only for faults the KIT reports (it has already disabled).
 
 ``classify_event`` turns a snapshot of what the client knows (``Conditions``) into at most one
 event per frame, the most urgent first; ``refusal`` says why an ``engage_request`` is refused.
@@ -22,17 +29,25 @@ event per frame, the most urgent first; ``refusal`` says why an ``engage_request
 
 from __future__ import annotations
 
+import math
 from typing import Final
 
 import msgspec
 
-STATES: Final = ("disengaged", "engaging", "engaged", "overridden", "timed_out", "faulted")
-LATCHED: Final = frozenset({"overridden", "timed_out", "faulted"})
+STATES: Final = ("disengaged", "engaging", "engaged", "stopping", "overridden", "timed_out",
+                  "faulted")
+LATCHED: Final = frozenset({"stopping", "overridden", "timed_out", "faulted"})
 """Stops the stack did not ask for: only an operator's ``engage_request`` leaves them."""
 
 EVENTS: Final[dict[str, str]] = {
-    "fault": "a report claims a fault, the reports went silent, the bus reports errors, or "
-             "the kit disabled a system the client still enables",
+    "fault": "the KIT reports a fault (its fault bits) or disabled a system the client still "
+             "enables: the kit has already let go",
+    "client_fault": "the CLIENT detects a fault: reports silent, a bus error, command frames "
+                    "from another node, a gear ERROR report",
+    "drive_end": "the drive ends (duration over, Ctrl-C, SIGTERM): engaged, brake to a "
+                 "standstill before letting go",
+    "stopped": "stopping: the kit reports a standstill held STANDSTILL_HOLD_S, or the stop's "
+               "time bound ran out",
     "override": "a system report (or GLOBAL_RPT) says an operator override is active",
     "kit_timeout": "GLOBAL_RPT says the kit timed out the user commands (usr_can_timeout)",
     "engage_timeout": "the kit did not report every system enabled within ENGAGE_TIMEOUT_S",
@@ -41,12 +56,16 @@ EVENTS: Final[dict[str, str]] = {
 }
 
 TRANSITIONS: Final[dict[str, dict[str, str]]] = {
-    "disengaged": {"engage_request": "engaging", "fault": "faulted"},
+    "disengaged": {"engage_request": "engaging", "fault": "faulted", "client_fault": "faulted"},
     "engaging": {"all_enabled": "engaged", "override": "overridden", "kit_timeout": "timed_out",
-                 "fault": "faulted", "engage_timeout": "faulted"},
-    "engaged": {"override": "overridden", "kit_timeout": "timed_out", "fault": "faulted"},
-    "overridden": {"engage_request": "engaging", "fault": "faulted"},
-    "timed_out": {"engage_request": "engaging", "fault": "faulted"},
+                 "fault": "faulted", "client_fault": "faulted", "engage_timeout": "faulted",
+                 "drive_end": "disengaged"},
+    "engaged": {"override": "overridden", "kit_timeout": "timed_out", "fault": "faulted",
+                "client_fault": "stopping", "drive_end": "stopping"},
+    "stopping": {"override": "overridden", "kit_timeout": "timed_out", "fault": "faulted",
+                 "stopped": "faulted"},
+    "overridden": {"engage_request": "engaging", "fault": "faulted", "client_fault": "faulted"},
+    "timed_out": {"engage_request": "engaging", "fault": "faulted", "client_fault": "faulted"},
     "faulted": {"engage_request": "engaging"},
 }
 """``TRANSITIONS[state][event] -> next state``; an event a state does not list leaves it as is."""
@@ -62,13 +81,33 @@ ENGAGE_TIMEOUT_S: Final = 2.0
 frames, against the few a kit needs to answer an edge."""
 ENGAGE_STANDSTILL_MPS: Final = 0.1
 """An engage is refused above this speed: the held brake would be a hard stop at speed."""
+STOP_BRAKE_RATIO: Final = 1.0
+"""``stopping``'s brake: the full pedal, as the XGV client's command-timeout brake (100 %)."""
+STANDSTILL_HOLD_S: Final = 0.5
+"""``stopping`` ends once the kit reports below ``ENGAGE_STANDSTILL_MPS`` for this long (15
+reports: a vehicle still rolling shows it)."""
+STOP_DECEL_MPS2: Final = 2.0
+"""The stop's time bound assumes this deceleration: conservative against the full brake (the
+vehicle files give 6-9 m/s^2 dry; 2 still holds on a wet, worn road)."""
+STOP_MARGIN_S: Final = 1.0
+"""Added to the bound: the brake's lag and the kit's reports' latency, with room to spare."""
+
+
+def stop_bound_s(speed_mps: float) -> float:
+    """How long ``stopping`` may brake before it disables anyway: the last known speed braked at
+    ``STOP_DECEL_MPS2``, plus ``STOP_MARGIN_S`` (a NaN speed: the bound of 40 m/s)."""
+    v = abs(speed_mps) if math.isfinite(speed_mps) else 40.0
+    return v / STOP_DECEL_MPS2 + STOP_MARGIN_S
 
 
 class Conditions(msgspec.Struct, frozen=True, kw_only=True):
     """What the client knows when it classifies (one frame)."""
 
     engage_request: bool = False       # an operator act arrived this frame
-    fault: bool = False                # reports claim a fault, are silent, or bus errors
+    fault: bool = False                # the kit reports a fault (it has let go)
+    client_fault: bool = False         # the client detects one: silence, bus error, foreign
+    stopped: bool = False              # stopping: standstill held, or the stop's bound ran out
+    drive_end: bool = False            # the drive is ending
     override: bool = False             # any system (or GLOBAL_RPT) reports an override
     kit_timeout: bool = False          # GLOBAL_RPT usr_can_timeout
     all_enabled: bool = False          # every system of the workflow reports enabled
@@ -88,9 +127,11 @@ def refusal(state: str, c: Conditions) -> str | None:
     """Why an operator's engage request is refused now (None: accepted)."""
     if state in ("engaging", "engaged"):
         return f"already {state}"
+    if state == "stopping":
+        return "stopping: braking to a standstill after a fault first"
     if not c.reports_fresh:
         return "the kit is not heard (no reports): nothing to engage"
-    if c.fault:
+    if c.fault or c.client_fault:
         return "the kit reports a fault (clear it on the kit first)"
     if not abs(c.speed_mps) <= ENGAGE_STANDSTILL_MPS:   # NaN refused too
         return (f"moving at {c.speed_mps:.2f} m/s: engage at a standstill (above "
@@ -105,10 +146,16 @@ def classify_event(state: str, c: Conditions) -> str | None:
     rows = TRANSITIONS[state]
     if c.fault and "fault" in rows:
         return "fault"
+    if c.client_fault and "client_fault" in rows:
+        return "client_fault"
+    if c.drive_end and "drive_end" in rows:
+        return "drive_end"
     if c.override and "override" in rows:
         return "override"
     if c.kit_timeout and "kit_timeout" in rows:
         return "kit_timeout"
+    if state == "stopping":
+        return "stopped" if c.stopped else None
     if state == "engaging":
         if c.all_enabled:
             return "all_enabled"
@@ -130,5 +177,6 @@ def mermaid_diagram() -> str:
 
 
 __all__ = ["DISABLE_FRAMES", "ENGAGE_BRAKE_RATIO", "ENGAGE_STANDSTILL_MPS", "ENGAGE_TIMEOUT_S",
-           "EVENTS", "LATCHED", "STATES", "TRANSITIONS", "Conditions", "classify_event",
-           "mermaid_diagram", "next_state", "refusal"]
+           "EVENTS", "LATCHED", "STANDSTILL_HOLD_S", "STATES", "STOP_BRAKE_RATIO",
+           "STOP_DECEL_MPS2", "STOP_MARGIN_S", "TRANSITIONS", "Conditions", "classify_event",
+           "mermaid_diagram", "next_state", "refusal", "stop_bound_s"]
