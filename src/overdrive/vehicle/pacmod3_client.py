@@ -446,7 +446,7 @@ class Pacmod3Client:
                                     is not None)
         why = refusal(self.state, c)
         detail = self._fault_reason(now_s, kit_faults=False)
-        if why is not None and c.fault and detail is not None:
+        if why is not None and (c.fault or c.client_fault) and detail is not None:
             why = f"{why}: {detail}"
         if why is not None:
             self.stats.engage_refused += 1

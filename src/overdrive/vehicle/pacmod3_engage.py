@@ -131,8 +131,10 @@ def refusal(state: str, c: Conditions) -> str | None:
         return "stopping: braking to a standstill after a fault first"
     if not c.reports_fresh:
         return "the kit is not heard (no reports): nothing to engage"
-    if c.fault or c.client_fault:
+    if c.fault:
         return "the kit reports a fault (clear it on the kit first)"
+    if c.client_fault:
+        return "a fault the client detects"
     if not abs(c.speed_mps) <= ENGAGE_STANDSTILL_MPS:   # NaN refused too
         return (f"moving at {c.speed_mps:.2f} m/s: engage at a standstill (above "
                 f"{ENGAGE_STANDSTILL_MPS} m/s the held brake would be a hard stop)")
