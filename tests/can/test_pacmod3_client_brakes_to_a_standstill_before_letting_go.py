@@ -6,6 +6,8 @@ the kit let go, it stops within the bound, and nothing re-engages without the op
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from overdrive.kits.frames import CanFrame
@@ -68,7 +70,7 @@ class LockStep:
 
 def judge_the_stop(ls: LockStep, fault_s: float, speed_mps: float) -> None:
     after = [t for t in ls.truths if t.t_s > fault_s]
-    for before, t in zip(after, after[1:], strict=False):
+    for before, t in itertools.pairwise(after):
         if abs(t.speed_mps) > ENGAGE_STANDSTILL_MPS:
             assert "brake" in t.enabled, f"let go at {t.speed_mps:.2f} m/s ({t.t_s:.2f} s)"
         if t.t_s > fault_s + 0.2:   # detected (3.5 report periods at most): throttle off

@@ -88,8 +88,9 @@ def run_drive_can(scenario: Scenario, config: CanConfig, out_dir: str | Path | N
     try:
         endpoint = EngageEndpoint(out_path)
         servers = build_servers(scenario, over_jaus=True)
-        nodes = [CanSensorNode(client, port, endpoint), *servers,
-                 CanCommandNode(client, port, endpoint, engage_at_start=engage)]
+        sensor = CanSensorNode(client, port, endpoint)
+        nodes = [sensor, *servers,
+                 CanCommandNode(client, port, endpoint, engage_at_start=engage, sensor=sensor)]
     except BaseException:
         if endpoint is not None:
             endpoint.close()

@@ -15,14 +15,16 @@ per system, bad frames by reason, and the bus's own counts, so a test judges a d
 kit's own odometry.
 
 A frame's time on the kit's clock is when it reached the bus (python-can's time stamp,
-``STAMP_TRUST_S``), not when this loop read it: a kit-sim starved of CPU (``make
+``runtime.can_edge.bus_arrival_s``), not when this loop read it: a kit-sim starved of CPU (``make
 test-under-load``) must not time out a stack whose frames were on time, as hardware would not.
+A frame stamped more than the kit's command timeout before it is read is dropped and counted
+(``stale_frames``): a real kit acts on a frame within a millisecond, so after a stall it would
+never act on commands that old.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -33,11 +35,11 @@ import msgspec
 
 from overdrive.kits.pacmod3 import Dialect
 from overdrive.messages import SIM_FAULTS_TOPIC, SIM_WORLD_TOPIC, Topic
-from overdrive.runtime.can_edge import CanConfig, CanConfigError, CanPort
+from overdrive.runtime.can_edge import CanConfig, CanConfigError, CanPort, bus_arrival_s
 from overdrive.scenario.player import ScenarioPlayer, world_from_spec
 from overdrive.scenario.schema import Scenario
 from overdrive.scenario.vehicles import KIT_VEHICLES
-from overdrive.vehicle.pacmod3_kit import KitFault, Pacmod3Kit
+from overdrive.vehicle.pacmod3_kit import COMMAND_TIMEOUT_S, KitFault, Pacmod3Kit
 from overdrive.vehicle.plant import ActuatorFaults
 
 PERIOD_S: Final = 0.01
@@ -45,13 +47,12 @@ PERIOD_S: Final = 0.01
 DEFAULT_VEHICLE: Final = "lexus-rx450h"
 """The PACMod default (issue 32): Lexus RX 450h, wheelbase 2.79 m."""
 TRUTH_HEADER: Final = "t_s,scenario_s,x_m,y_m,speed_mps,odometer_m"
-STAMP_TRUST_S: Final = 1.0
+STAMP_TRUST_S: Final = COMMAND_TIMEOUT_S
 """A frame's bus time stamp (python-can's, the wall clock of the hub or interface that received
-it) is its arrival time when it is at most this old and not in the future (5 ms of slack): a
-kit-sim starved of CPU then judges the command timeout by when frames reached the bus, as the
-kit's hardware would, not by when this process got round to reading them. Older or later
-stamps (a clock step) are not trusted: the frame arrived when it was read."""
-STAMP_FUTURE_S: Final = 0.005
+it) is its arrival time when it is at most this old and not in the future (``STAMP_FUTURE_S``
+of slack): a kit-sim starved of CPU then judges the command timeout by when frames reached the
+bus, as the kit's hardware would. Older: dropped and counted (the kit would have timed the
+command out before acting on it). Later (a clock step): taken as read."""
 
 
 def parse_fault(text: str) -> KitFault:
@@ -98,6 +99,7 @@ class KitSimServer:
         self.ignored_events: dict[str, int] = {}
         self._wall0 = 0.0
         self._last_arrival_s = 0.0
+        self.stale_frames = 0                 # stamped older than the command timeout: dropped
 
     def stop(self) -> None:
         self._stop.set()
@@ -148,18 +150,19 @@ class KitSimServer:
         """Hand ``batch`` (python-can stamps and frames, read at ``read_s``) to the kit."""
         for stamp, frame in batch:
             arrived = self._arrival_s(stamp, read_s)
+            if arrived is None:
+                self.stale_frames += 1
+                continue
             if self.scenario_start_s is None:
                 self._start_scenario(arrived)
             self.kit.receive(frame, arrived)
 
-    def _arrival_s(self, stamp: float, read_s: float) -> float:
+    def _arrival_s(self, stamp: float, read_s: float) -> float | None:
         """A frame's arrival on the kit's clock (``STAMP_TRUST_S``), never before the previous
-        frame's."""
-        t = stamp - self._wall0
-        if not (math.isfinite(t) and read_s - STAMP_TRUST_S <= t <= read_s + STAMP_FUTURE_S):
-            t = read_s
-        t = min(max(t, self._last_arrival_s), read_s)
-        self._last_arrival_s = t
+        frame's; None: too old to act on."""
+        t = bus_arrival_s(stamp, self._wall0, read_s, self._last_arrival_s, STAMP_TRUST_S)
+        if t is not None:
+            self._last_arrival_s = t
         return t
 
     def _start_scenario(self, now_s: float) -> None:
@@ -197,7 +200,8 @@ class KitSimServer:
         out.update({
             "scenario_start_s": self.scenario_start_s, "duration_s": self.now_s,
             "can": self.config.to_json(), "frames_received": self.port.received,
-            "reports_sent": self.reports_sent, "bus_errors": self.port.errors.as_dict(),
+            "reports_sent": self.reports_sent, "stale_frames": self.stale_frames,
+            "bus_errors": self.port.errors.as_dict(),
             "bus_problems": self.bus_problems, "ignored_scenario_events": self.ignored_events,
         })
         return out

@@ -35,6 +35,9 @@ MIN_FRAME_GAP_S: Final = 0.0005
 CONNECT_CHECK_TIMEOUT_S: Final = 2.0
 """socketcand: how long to wait for the hub's TCP port before saying it is not there (python-can
 itself retries for 10 s in a busy loop)."""
+STAMP_FUTURE_S: Final = 0.005
+"""A bus stamp up to this far ahead of the read is the two clocks' jitter; further is a clock
+step, and the frame is taken as read then."""
 TRAFFIC_MAX_FRAMES: Final = 4096
 """Frames kept for the recorder between two ``traffic`` calls; beyond, the oldest are counted as
 dropped from the log (never from the bus)."""
@@ -198,6 +201,21 @@ def _check_reachable(config: CanConfig) -> None:
     if greeting.strip() != b"< hi >":
         raise CanConfigError(f"{host}:{port_number} is not a socketcand server (it said "
                              f"{greeting[:40]!r}, expected '< hi >')")
+
+
+def bus_arrival_s(stamp_wall_s: float, wall0_s: float, read_s: float, last_s: float,
+                  trust_s: float) -> float | None:
+    """A frame's arrival on the reader's clock from its bus stamp (python-can's, wall clock;
+    ``wall0_s`` the wall time of the reader's time 0), never before ``last_s`` (the previous
+    frame's) nor after ``read_s``. None: stamped more than ``trust_s`` before the read, a frame
+    too old to act on (the caller drops and counts it). A stamp not finite or in the future (a
+    clock step) is taken as read at ``read_s``."""
+    t = stamp_wall_s - wall0_s
+    if not math.isfinite(t) or t > read_s + STAMP_FUTURE_S:
+        t = read_s
+    elif t < read_s - trust_s:
+        return None
+    return min(max(t, last_s), read_s)
 
 
 class CanErrors:

@@ -6,6 +6,13 @@ frames that arrived in, the stack's sensor messages out), the servers, and ``Can
 step, the raw frames out on ``Topic.CAN_FRAMES`` for run.mcap). No thread re-sends anything: a
 stalled (SIGSTOP) or killed drive sends nothing and the kit's 100 ms command timeout fires.
 
+A report's time is when it reached the bus (its python-can stamp on the step's clock,
+``can_edge.bus_arrival_s``), so reports drained together integrate their true spacing; one
+stamped more than ``STAMP_TRUST_S`` before it is read is dropped and counted. Error frames and
+receive failures the port counts reach the client as bus errors (a fault: it brakes to a stop).
+Ending the drive (its duration, Ctrl-C, SIGTERM) engaged brakes to a standstill before the kit
+is let go (``CanCommandNode.close``): disabling at speed would coast.
+
 ``EngageEndpoint``: the operator's act against a running drive (``overdrive engage --run
 RUN_DIR``). A UDP socket on 127.0.0.1 with an ephemeral port and a random token, both written
 to ``RUN_DIR/engage.json`` (mode 0600: only the user who started the drive can read the
@@ -20,19 +27,27 @@ import contextlib
 import json
 import os
 import secrets
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Final
 
 from overdrive.messages import Topic
-from overdrive.runtime.can_edge import CanPort
+from overdrive.runtime.can_edge import CanPort, bus_arrival_s
 from overdrive.runtime.udp import open_udp
 from overdrive.vehicle.pacmod3_client import Pacmod3Client
+from overdrive.vehicle.pacmod3_engage import stop_bound_s
 
 LOOPBACK: Final = "127.0.0.1"
 ENGAGE_FILE: Final = "engage.json"
 REQUEST_MAX_BYTES: Final = 512           # a request is a token and a word; longer is garbage
 REQUESTS_PER_STEP: Final = 8             # a flood cannot hold up the command loop
+STAMP_TRUST_S: Final = 1.0
+"""A report stamped more than this before it is read is dropped (counted in ``stale_frames``):
+what the kit said that long ago is not its state now; younger ones count at their bus time."""
+RELEASE_MAX_S: Final = stop_bound_s(40.0) + 1.0
+"""The drive's end waits at most this for the client's stop (the client's own bound, at the
+highest speed a vehicle file allows, plus a second): then it lets go whatever happened."""
 
 
 class EngageEndpoint:
@@ -136,14 +151,38 @@ class CanSensorNode:
     subscriptions: tuple[str, ...] = ()
 
     def __init__(self, client: Pacmod3Client, port: CanPort,
-                 endpoint: EngageEndpoint | None = None) -> None:
+                 endpoint: EngageEndpoint | None = None, *,
+                 wall_clock: Any = time.time) -> None:
         self.client = client
         self.port = port
         self.endpoint = endpoint
+        self.wall_clock = wall_clock
+        self.wall0_s: float | None = None     # the wall time of the step clock's 0
+        self.last_arrival_s = -float("inf")
+        self.stale_frames = 0
+        self.errors_seen = (0, 0)             # (error frames, receive failures) forwarded
+
+    def drain(self, now_s: float) -> None:
+        """Hand every frame that arrived to the client at its bus time; bus errors as faults."""
+        if self.wall0_s is None:
+            self.wall0_s = self.wall_clock() - now_s
+        for stamp, frame in self.port.receive(0.0, now_s):
+            arrived = bus_arrival_s(stamp, self.wall0_s, now_s, self.last_arrival_s,
+                                    STAMP_TRUST_S)
+            if arrived is None:
+                self.stale_frames += 1
+                continue
+            self.last_arrival_s = arrived
+            self.client.receive(frame, arrived)
+        errors = self.port.errors
+        seen = (errors.error_frames, errors.receive_failures)
+        if seen != self.errors_seen:
+            self.errors_seen = seen
+            self.client.bus_error(f"{seen[0]} error frames, {seen[1]} receive failures: "
+                                  f"{errors.last or 'error frame'}")
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
-        for _stamp, frame in self.port.receive(0.0, now_s):
-            self.client.receive(frame, now_s)
+        self.drain(now_s)
         return self.client.sensor_outputs(now_s)
 
     def link_report(self) -> dict[str, Any]:
@@ -151,7 +190,8 @@ class CanSensorNode:
         return {**self.client.report(), "bus": self.port.errors.as_dict(),
                 "frames_sent": self.port.sent, "frames_received": self.port.received,
                 "engage_requests_refused": (self.endpoint.refused
-                                            if self.endpoint is not None else 0)}
+                                            if self.endpoint is not None else 0),
+                "stale_frames": self.stale_frames}
 
 
 class CanCommandNode:
@@ -162,15 +202,22 @@ class CanCommandNode:
     subscriptions = (Topic.PEDALS, Topic.STEER, Topic.POWERTRAIN)
 
     def __init__(self, client: Pacmod3Client, port: CanPort,
-                 endpoint: EngageEndpoint | None = None, engage_at_start: bool = False) -> None:
+                 endpoint: EngageEndpoint | None = None, engage_at_start: bool = False, *,
+                 sensor: CanSensorNode | None = None, clock: Any = time.monotonic,
+                 sleep: Any = time.sleep) -> None:
         self.client = client
         self.port = port
         self.endpoint = endpoint
         self.engage_at_start = engage_at_start
+        self.sensor = sensor          # drained while the drive's end brakes to a stop
+        self.clock = clock
+        self.sleep = sleep
         self.last_now_s = 0.0
+        self.last_clock_s: float | None = None
 
     def step(self, now_s: float, inbox: Sequence[tuple[str, Any]]) -> list[tuple[str, Any]]:
         self.last_now_s = now_s
+        self.last_clock_s = self.clock()
         client = self.client
         out = client.take_inputs(inbox, now_s)
         if self.engage_at_start and client.heard:   # --engage: once the kit is heard
@@ -189,12 +236,33 @@ class CanCommandNode:
         return out
 
     def close(self) -> None:
-        """Hand the kit back: one frame of every system disabled, then close the bus."""
-        with contextlib.suppress(OSError, ValueError):
-            self.port.send(self.client.release_frames(), self.last_now_s)
-        if self.endpoint is not None:
-            self.endpoint.close()
-        self.port.close()
+        """Hand the kit back: engaged, brake to a standstill first (``Pacmod3Client.end_drive``,
+        at most ``RELEASE_MAX_S``), then one frame of every system disabled; close the bus."""
+        try:
+            with contextlib.suppress(OSError, ValueError):
+                now_s = self.brake_to_a_stop()
+                self.port.send(self.client.release_frames(), now_s)
+        finally:
+            if self.endpoint is not None:
+                self.endpoint.close()
+            self.port.close()
+
+    def brake_to_a_stop(self) -> float:
+        """Step the client on the step clock until it no longer holds the kit (returns the time)."""
+        client = self.client
+        start = self.clock()
+        clock0 = self.last_clock_s if self.last_clock_s is not None else start
+        client.end_drive(self.last_now_s)
+        now_s = self.last_now_s
+        while client.releasing and self.clock() - start < RELEASE_MAX_S:
+            now_s = self.last_now_s + self.clock() - clock0
+            if self.sensor is not None:
+                self.sensor.drain(now_s)
+                client.sensor_outputs(now_s)
+            for problem in self.port.send(client.command_frames(now_s), now_s):
+                client.bus_error(problem)
+            self.sleep(self.period_s)
+        return now_s
 
 
 __all__ = ["ENGAGE_FILE", "CanCommandNode", "CanSensorNode", "EngageEndpoint", "request_engage"]
