@@ -230,6 +230,7 @@ class Pacmod3Client:
         self.steer_sent_pct: float | None = None   # rate limiter's memory (None: not yet)
         self.powertrain: PowertrainCommand | None = None
         self.shift_refusal: str | None = None
+        self.rejecting: dict[str, str] = {}   # code -> the reason last said (said once)
         # reports
         self.seen_s: dict[str, float] = {}   # report -> when last read
         self.global_rpt: GlobalRpt | None = None
@@ -506,25 +507,38 @@ class Pacmod3Client:
                 if self._allowed(msg, lim.pedal_sources, out):
                     self.pedals, self.pedals_s = msg, now_s
                     _, _, why = gate_pedals(msg.throttle_pct, msg.brake_pct)
-                    if why and why != "throttle while braking":
-                        self._reject("pedals", f"pedal command {why}: gated "
-                                               f"(throttle 0 / brake 100 for NaN, clamped)", out)
+                    if why and why != "throttle while braking":   # that one is the rule
+                        self._reject("pedals_gated", f"pedal command {why}: gated (a NaN "
+                                                     f"throttle 0, brake 100; clamped)", out)
+                    else:
+                        self.rejecting.pop("pedals_gated", None)
             elif topic == Topic.STEER:
                 if not self._allowed(msg, lim.steer_sources, out):
                     continue
                 if math.isfinite(msg.steer_pct):
                     self.steer_cmd_pct = min(max(msg.steer_pct, -100.0), 100.0)
+                    self.rejecting.pop("steer_not_finite", None)
                 else:
-                    self._reject("steer", f"steer_pct {msg.steer_pct!r} not finite: the last "
-                                          f"command held", out)
+                    self._reject("steer_not_finite", f"steer_pct {msg.steer_pct!r}: the last "
+                                                     f"command held", out)
             elif (topic == Topic.POWERTRAIN and isinstance(msg, PowertrainCommand)
                   and self._allowed(msg, lim.powertrain_sources, out)):
-                self.powertrain = msg
+                if msg.gear in self.gear_of:
+                    self.powertrain = msg
+                    self.rejecting.pop("unknown_gear", None)
+                else:
+                    self._reject("unknown_gear", f"gear {msg.gear!r}: not a gear of "
+                                                 f"{self.params.preset}; the last request held",
+                                 out)
         return out
 
     def _reject(self, code: str, reason: str, out: list | None = None) -> None:
-        """A command the client refused (in part): counted, and a rejection notice."""
+        """A command the client refused (in part): counted every time; a rejection notice when
+        the reason changes (a stream of the same bad command is said once)."""
         self.stats.rejected_commands += 1
+        if self.rejecting.get(code) == reason:
+            return
+        self.rejecting[code] = reason
         notice = Notice(kind="rejected", source=self.name, code=code, reason=reason)
         if out is None:
             self.notices.append(notice)
@@ -667,9 +681,7 @@ class Pacmod3Client:
         pt = self.powertrain
         if pt is None or self.state == "stopping":
             return current
-        if pt.gear not in self.gear_of:
-            self._reject("unknown_gear", f"gear {pt.gear!r}: not a gear of "
-                                         f"{self.params.preset}; holding {current.name}")
+        if pt.gear not in self.gear_of:   # refused in take_inputs; never stored
             return current
         wanted = self.gear_of[pt.gear]
         if wanted == current:
