@@ -250,6 +250,7 @@ class Pacmod3Client:
         self.standstill_s: float | None = None   # reported below standstill since (None: moving)
         self.stop_deadline_s = math.inf      # stopping: disable by then whatever the reports say
         self.ending = False                  # the drive is ending (``end_drive``)
+        self.stop_cause = ""                 # the event that entered stopping
 
     # ------------------------------------------------------------------ wire in
 
@@ -350,7 +351,7 @@ class Pacmod3Client:
         return Conditions(
             engage_request=self.engage_pending, fault=kit_reason is not None,
             client_fault=client_reason is not None, stopped=self._stopped(now_s),
-            drive_end=self.ending,
+            drive_end=self.ending and (self.state != "stopping" or self.stop_cause == "drive_end"),
             override=override, kit_timeout=kit_timeout, all_enabled=self._all_enabled(now_s),
             engage_elapsed_s=now_s - self.state_s, speed_mps=self.speed_mps,
             reports_fresh=self._silent(now_s) is None and self._heard())
@@ -480,6 +481,7 @@ class Pacmod3Client:
             self._told.discard("state")
         if self.state == "stopping":
             self.stop_deadline_s = now_s + stop_bound_s(self.speed_mps)
+            self.stop_cause = event
         reason = {"override": "operator override: the kit hands the vehicle to its driver",
                   "kit_timeout": "the kit timed out our commands (usr_can_timeout)",
                   "fault": self._fault_reason(now_s) or "fault",
@@ -487,6 +489,7 @@ class Pacmod3Client:
                                   f"a standstill engaged, then letting go",
                   "drive_end": "the drive ends: braking to a standstill engaged, then letting go",
                   "stopped": "stopped (or the stop's time bound ran out): letting go",
+                  "released": "the drive ended stopped: the kit let go",
                   "engage_timeout": "the kit did not enable every system in time"}.get(event)
         kind = "engage"
         if self.state == "overridden":

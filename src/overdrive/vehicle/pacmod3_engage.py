@@ -46,6 +46,8 @@ EVENTS: Final[dict[str, str]] = {
                     "from another node, a gear ERROR report",
     "drive_end": "the drive ends (duration over, Ctrl-C, SIGTERM): engaged, brake to a "
                  "standstill before letting go",
+    "released": "stopping for the drive's end: stopped (or the bound ran out); let go, not "
+                "latched (nothing went wrong)",
     "stopped": "stopping: the kit reports a standstill held STANDSTILL_HOLD_S, or the stop's "
                "time bound ran out",
     "override": "a system report (or GLOBAL_RPT) says an operator override is active",
@@ -63,7 +65,7 @@ TRANSITIONS: Final[dict[str, dict[str, str]]] = {
     "engaged": {"override": "overridden", "kit_timeout": "timed_out", "fault": "faulted",
                 "client_fault": "stopping", "drive_end": "stopping"},
     "stopping": {"override": "overridden", "kit_timeout": "timed_out", "fault": "faulted",
-                 "stopped": "faulted"},
+                 "stopped": "faulted", "released": "disengaged"},
     "overridden": {"engage_request": "engaging", "fault": "faulted", "client_fault": "faulted"},
     "timed_out": {"engage_request": "engaging", "fault": "faulted", "client_fault": "faulted"},
     "faulted": {"engage_request": "engaging"},
@@ -107,7 +109,7 @@ class Conditions(msgspec.Struct, frozen=True, kw_only=True):
     fault: bool = False                # the kit reports a fault (it has let go)
     client_fault: bool = False         # the client detects one: silence, bus error, foreign
     stopped: bool = False              # stopping: standstill held, or the stop's bound ran out
-    drive_end: bool = False            # the drive is ending
+    drive_end: bool = False            # the drive is ending (stopping: and that is why)
     override: bool = False             # any system (or GLOBAL_RPT) reports an override
     kit_timeout: bool = False          # GLOBAL_RPT usr_can_timeout
     all_enabled: bool = False          # every system of the workflow reports enabled
@@ -157,7 +159,9 @@ def classify_event(state: str, c: Conditions) -> str | None:
     if c.kit_timeout and "kit_timeout" in rows:
         return "kit_timeout"
     if state == "stopping":
-        return "stopped" if c.stopped else None
+        if not c.stopped:
+            return None
+        return "released" if c.drive_end else "stopped"
     if state == "engaging":
         if c.all_enabled:
             return "all_enabled"
