@@ -14,7 +14,7 @@ from overdrive.kits.frames import CanFrame
 from overdrive.kits.pacmod3 import AccelCmd
 from overdrive.messages import PedalCommand, PowertrainCommand, SteerCommand, Topic
 from overdrive.scenario.vehicles import KIT_VEHICLES
-from overdrive.vehicle.pacmod3_client import Pacmod3Client
+from overdrive.vehicle.pacmod3_client import Pacmod3Client, Pacmod3ClientConfig
 from overdrive.vehicle.pacmod3_engage import (
     ENGAGE_STANDSTILL_MPS,
     STANDSTILL_HOLD_S,
@@ -31,10 +31,10 @@ STEER = SteerCommand(steer_pct=5.0, source="driving")
 class LockStep:
     """Client and kit stepped together; ``hook(now_s)`` runs before the client's commands."""
 
-    def __init__(self) -> None:
+    def __init__(self, dialect: str = "v3") -> None:
         params = KIT_VEHICLES["lexus-rx450h"]
-        self.kit = Pacmod3Kit(params)
-        self.client = Pacmod3Client(params)
+        self.kit = Pacmod3Kit(params, dialect=dialect)
+        self.client = Pacmod3Client(params, Pacmod3ClientConfig(dialect=dialect))
         self.now_s = 0.0
         self.truths = []
 
@@ -85,9 +85,11 @@ def judge_the_stop(ls: LockStep, fault_s: float, speed_mps: float) -> None:
         ["drive_end", "released"] if ending else ["client_fault", "stopped"])
 
 
+@pytest.mark.parametrize("dialect", ["v3", "v14"])
 @pytest.mark.parametrize("speed_mps", [1.0, 4.19, 8.0])
-def test_reports_silent_at_speed_brake_engaged_to_a_standstill_then_latch(speed_mps) -> None:
-    ls = LockStep()
+def test_reports_silent_at_speed_brake_engaged_to_a_standstill_then_latch(speed_mps,
+                                                                          dialect) -> None:
+    ls = LockStep(dialect)
     v = ls.at_speed(speed_mps)
     fault_s = ls.now_s
     ls.kit.inject(KitFault(kind="silence", start_s=fault_s, end_s=fault_s + 0.2))

@@ -198,7 +198,7 @@ def test_a_curve_turns_the_way_asked_and_a_silent_planner_stops_it_engaged(
     start = next(t for t in truths if t["truth"]["odometer_m"] > 0.0)
     turned_rad = last["truth"]["heading_rad"] - start["truth"]["heading_rad"]
     arc_m = last["truth"]["odometer_m"] - start["truth"]["odometer_m"]
-    assert arc_m > 10.0
+    assert arc_m > 5.0
     assert turned_rad == pytest.approx(-curvature_1pm * arc_m, rel=0.10)
     assert abs(last["truth"]["speed_mps"]) < 0.05, "stopped while the planner was silent"
     assert last["truth"]["odometer_m"] < 35.0, "short of the MOVE's end"

@@ -645,7 +645,7 @@ class Pacmod3Client:
                      gear=gear),
         ]
         if cfg.dialect == "v14":
-            on = self.state in ("engaging", "engaged")
+            on = self.state in ("engaging", "engaged", "stopping")   # v14: 0 disables all
             out.insert(0, GlobalCmd(counter=self.counter, clear_overrides=clear,
                                     clear_faults=clear))
             out.insert(1, SupervisoryCtrl(counter=self.counter, enable=on))
