@@ -239,8 +239,10 @@ class CanCommandNode:
         """Hand the kit back: engaged, brake to a standstill first (``Pacmod3Client.end_drive``,
         at most ``RELEASE_MAX_S``), then one frame of every system disabled; close the bus."""
         try:
-            with contextlib.suppress(OSError, ValueError):
+            now_s = self.last_now_s
+            with contextlib.suppress(OSError, ValueError):   # a bus gone: let go all the same
                 now_s = self.brake_to_a_stop()
+            with contextlib.suppress(OSError, ValueError):
                 self.port.send(self.client.release_frames(), now_s)
         finally:
             if self.endpoint is not None:
