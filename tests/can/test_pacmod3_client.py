@@ -231,9 +231,15 @@ def reports_client(speed_mps: float, brake_ratio: float, gear: Gear = Gear.PARK)
     loop.engage()
     client = loop.client
     kit = loop.kit
-    kit.speed_mps, kit.brake_ratio, kit.gear = speed_mps, brake_ratio, gear
-    for frame in kit.reports():
-        client.receive(frame, loop.now_s)
+    kit.brake_ratio, kit.gear = brake_ratio, gear
+    # to the speed at a physical rate (0.3 m/s per report, 9 m/s^2): a report jumping beyond
+    # any vehicle's acceleration is refused as a second sender's (vehicle.kit_reports)
+    steps = max(1, math.ceil(abs(speed_mps) / 0.3))
+    for k in range(1, steps + 1):
+        kit.speed_mps = speed_mps * k / steps
+        loop.now_s += 1.0 / 30.0
+        for frame in kit.reports():
+            client.receive(frame, loop.now_s)
     return loop
 
 

@@ -102,6 +102,23 @@ def test_frozen_wheel_speed_at_cruise_is_untrusted_by_the_gps() -> None:
     assert bench.node.speed_mps == pytest.approx(5.0, abs=0.1)
 
 
+@pytest.mark.parametrize(("gps_mps", "flagged"), [(5.0, False), (5.01, True), (4.99, True)])
+def test_one_quantised_speed_under_two_names_is_not_frozen_a_different_one_is(
+        gps_mps: float, flagged: bool) -> None:
+    """A CAN kit's single speed report (0.01 m/s steps) dead-reckoned into the pose and given
+    as the wheel speed: at a steady cruise both repeat one value while the pose moves. The
+    wheel speed agrees with the GPS/INS's speed exactly, so it is not frozen; one step of the
+    quantum apart, the GPS/INS says otherwise and the repeating wheel is frozen (1102 was raised
+    at a steady 3 m/s cruise across processes, 2026-11-26)."""
+    bench = Bench()
+    odo = 0.0
+    for _ in range(100):
+        odo += gps_mps * DT
+        bench.step(gps(gps_mps, odo, x=odo), WheelSpeed(speed_mps=5.0), imu(bench.n(0.05)))
+    assert (not bench.node.wheel_track.trusted) is flagged
+    assert bench.codes() == ([PlausibilityFault.WHEEL_SPEED_FROZEN] if flagged else [])
+
+
 def test_a_noise_free_bench_at_constant_speed_is_not_frozen() -> None:
     """Every source repeating: none disagrees, nothing is called frozen (synthetic benches)."""
     bench = Bench()

@@ -12,7 +12,9 @@ Checks:
   least ``moving_mps``, or an IMU that integrates to ``imu_dv_mps`` of speed change since the
   repeats began) is a frozen source. A frozen IMU is one that repeats while a trusted speed
   changes by ``imu_dv_mps`` more than the repeated acceleration explains. When every source
-  repeats (a noise-free bench at constant speed) nothing is called frozen: no source disagrees.
+  repeats (a noise-free bench at constant speed) nothing is called frozen: no source disagrees;
+  nor when the other source reads exactly the repeated speed (one quantised measurement under two
+  names, as a CAN kit's single speed report is: it agrees).
 - **jumping**: an odometer that runs backwards, or advances more than the speed allows over the
   time since the previous reading (``jump_m`` of slack), is untrusted.
 
@@ -380,11 +382,15 @@ class MotionPlausibility:
     def _moving_evidence(self, track: _Track, now_s: float) -> str:
         """Why another source says the vehicle moves while ``track`` repeats, or ""."""
         cfg = self.config
+        repeated = self._now_speed(track)
         for other in (self.gps_track, self.wheel_track):
             if other is track or not other.trusted or not other.live(now_s, cfg.timeout_s):
                 continue
             v = self._now_speed(other)
-            if (v is not None and abs(v) >= cfg.moving_mps
+            # a source reading exactly the speed this one repeats agrees with it: one
+            # measurement under two names (a CAN kit's one speed report, dead-reckoned into
+            # the pose and given as the wheel speed), quantised, at a steady cruise
+            if (v is not None and abs(v) >= cfg.moving_mps and v != repeated
                     and other.repeated_s(now_s) < cfg.freeze_s - 1e-9):
                 return f"{other.name} reads {v:.2f} m/s"
         imu = self.imu_track

@@ -78,6 +78,7 @@ from overdrive.messages import (
     WheelSpeed,
 )
 from overdrive.safety.gate import GateLimits, gate_pedals, gate_steer
+from overdrive.vehicle.kit_reports import ReportGuard
 from overdrive.vehicle.modes import computer_axes
 from overdrive.vehicle.pacmod3_engage import (
     DISABLE_FRAMES,
@@ -128,6 +129,8 @@ _REPORTS: Final[dict[type, str]] = {AccelRpt: "accel", BrakeRpt: "brake", Steeri
                                     ShiftRpt: "shift"}
 _REQUIRED: Final = ("global", "accel", "brake", "steering", "shift", "speed", "yaw")
 """Reports that must keep coming (``REPORT_TIMEOUT_S``); the wheel speeds are not used."""
+_GUARDED_REPORTS: Final = (GlobalRpt, *_REPORTS, VehicleSpeedRpt, YawRateRpt, WheelSpeedRpt)
+"""The kit's reports, checked for a second sender (``vehicle.kit_reports``)."""
 
 
 class Pacmod3ClientConfig(msgspec.Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
@@ -165,6 +168,7 @@ class Pacmod3Stats(msgspec.Struct, kw_only=True):
     malformed: int = 0
     unknown: int = 0
     foreign_commands: int = 0
+    report_conflicts: int = 0   # reports refused as a second sender's (rate, impossible speed)
     rejected_commands: int = 0
     shifts_refused: int = 0
     engage_refused: int = 0
@@ -209,6 +213,7 @@ class Pacmod3Client:
         if cfg.bring_up is not None:
             self.wheel_rate_radps = min(self.wheel_rate_radps, BRING_UP_STEERING_RATE_RADPS)
         self.stats = Pacmod3Stats()
+        self.report_guard = ReportGuard(REPORT_PERIOD_S)
         self.notices: list[Notice] = []
         self._told: set[str] = set()
         self._command_ids = frozenset(self.codec.frame_id(c) for c in (
@@ -270,6 +275,8 @@ class Pacmod3Client:
             self.stats.malformed += 1
             self._notice("malformed", f"PACMod frame refused: {e}")
             return
+        if isinstance(msg, _GUARDED_REPORTS) and not self._plausible(frame, msg, read_s):
+            return
         if isinstance(msg, GlobalRpt):
             self.global_rpt = msg
             self.seen_s["global"] = read_s
@@ -289,6 +296,18 @@ class Pacmod3Client:
             pass   # the vehicle speed report is used (the tyre radius is not in the vehicle file)
         else:   # a command type decoded from an id not ours (v14 global/supervisory)
             self._foreign(read_s, f"{type(msg).__name__} from another node")
+
+    def _plausible(self, frame: CanFrame, msg: Any, read_s: float) -> bool:
+        """A report from the kit, as far as its rate and physics tell (``kit_reports``): a
+        second sender's is refused, counted, and a fault the client detects (it brakes)."""
+        guard = self.report_guard
+        ok = guard.arrived(frame.arbitration_id, read_s)
+        if ok and isinstance(msg, VehicleSpeedRpt) and msg.valid and math.isfinite(msg.speed_mps):
+            ok = guard.speed_plausible(msg.speed_mps, read_s)
+        if not ok:
+            self.stats.report_conflicts += 1
+            self._notice("report_conflict", guard.conflict or "report refused")
+        return ok
 
     def _foreign(self, read_s: float, reason: str) -> None:
         """Another node commands the kit: a fault while it is seen (``FOREIGN_HOLD_S``)."""
@@ -409,6 +428,8 @@ class Pacmod3Client:
             return f"CAN bus error: {self.bus_errors[-1]}"
         if now_s - self.foreign_s <= FOREIGN_HOLD_S:
             return "command frames from another node on the bus (a second controller?)"
+        if self.report_guard.conflict is not None:
+            return f"reports from a second sender: {self.report_guard.conflict}"
         shift = self.system_rpt.get("shift")
         if shift is not None and shift.output_value == Gear.ERROR:
             return "shift report: gear ERROR"
@@ -443,6 +464,7 @@ class Pacmod3Client:
         if self._silent(now_s) is None:
             self.silence_seen = None
         self.bus_errors.clear()
+        self.report_guard.clear()
         c = self._conditions(now_s)
         c = msgspec.structs.replace(c, fault=self._kit_fault_reason(now_s, kit_faults=False)
                                     is not None)
