@@ -1,4 +1,4 @@
-"""A red team's rig for ``drive --can pacmod3`` across processes: ``overdrive can-hub``,
+"""A rig for ``drive --can pacmod3`` across processes: ``overdrive can-hub``,
 ``overdrive kit-sim pacmod3`` (its ``--summary`` and ``--truth`` are the ground truth) and
 ``overdrive drive`` as three processes, and a passive python-can listener on the hub recording
 every frame as sent (time, id, data). Nothing here judges: the tests do."""

@@ -6,7 +6,7 @@ pacmod3 --engage``), judged from the kit's own truth. When the drive ends, by it
 every system with ``enable=0`` at once: at speed the kit lets go of the brake and the vehicle
 coasts, nobody commanding it (a real PACMod hands the pedals to a driver who did not ask).
 
-Measured 2026-11-26 (red32a, ``/tmp/red32a/end.py``, MOVE 80 m at 6 m/s): the duration ending
+Measured 2026-11-26 with ``tests/kits/drive_rig.py`` (MOVE 80 m at 6 m/s): the duration ending
 at 5.95 m/s: the kit disabled within 0.1 s, 5.49 m/s 4 s later; SIGINT at 4.16 m/s: the drive
 exited in 0.1 s (rc 1, "Aborted!"), 3.93 m/s 4 s later."""
 
@@ -26,7 +26,7 @@ STOPPED_MPS = 0.1
 
 
 @pytest.mark.xfail(strict=True, reason="the drive's end hands the kit back at speed: the "
-                                       "vehicle coasts (red32a)")
+                                       "vehicle coasts")
 @pytest.mark.parametrize("end", ["duration", "sigint"])
 def test_a_drive_ending_at_speed_stops_the_vehicle_before_handing_back(tmp_path, end) -> None:
     rig = Rig(tmp_path).start()

@@ -7,7 +7,7 @@ coasts (a real PACMod hands the pedals back). Today a report silence of 0.5 s, o
 steering actuator, moves the client to ``faulted``, which commands ``enable=0`` on EVERY
 system, the brake included: the kit lets go and the vehicle coasts on drag alone.
 
-Measured 2026-11-26 (red32a, ``/tmp/red32a/loss.py``, MOVE 80 m at 6 m/s): silence 8-8.5 s at
+Measured 2026-11-26 with ``tests/kits/drive_rig.py`` (MOVE 80 m at 6 m/s): silence 8-8.5 s at
 3.5 m/s: still 1.07 m/s 22 s later, 48 m rolled after the silence; stuck steering at 8 s at
 3.3 m/s: still 0.83 m/s 22 s later, 46 m rolled (the brake was working all along). This test
 (fault at 9 s, ~5 m/s): 4.71 m/s (silence) and 4.56 m/s (stuck) 4 s after the fault, 28-29 m
@@ -27,7 +27,7 @@ STOPPED_MPS = 0.1
 
 
 @pytest.mark.xfail(strict=True, reason="a fault or silence at speed disables the brake too: the "
-                                       "vehicle coasts (red32a)")
+                                       "vehicle coasts")
 @pytest.mark.parametrize("fault", [f"silence::{FAULT_AT_S}:{FAULT_AT_S + 0.5}",
                                    f"stuck:steering:{FAULT_AT_S}"], ids=["silence", "stuck"])
 def test_a_kit_fault_or_report_silence_at_speed_brakes_to_a_stop(tmp_path, fault) -> None:

@@ -9,7 +9,7 @@ the speed server waits for `drive` (fault 1010 "gear 'drive' not reached within 
 can be brought up as the checklist says (nothing tells the operator to shift by hand, and the
 emulated kit has no hand on the selector).
 
-Measured 2026-11-26 (red32a, ``/tmp/red32a/bringup.py``, MOVE 30 m at 6 m/s, 18 s): kit
+Measured 2026-11-26 with ``tests/kits/drive_rig.py`` (MOVE 30 m at 6 m/s, 18 s): kit
 odometer 0.0 m, largest accel_ratio sent with enable=1: 0.0, edges brake and accel only."""
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ OVERSHOOT_MPS = 0.5            # the throttle cut at 2 m/s and the brake's lag
 
 
 @pytest.mark.xfail(strict=True, reason="--bring-up throttle never shifts out of park: the "
-                                       "vehicle never moves (red32a)")
+                                       "vehicle never moves")
 def test_bring_up_throttle_drives_at_walking_pace_with_the_throttle_capped(tmp_path) -> None:
     rig = Rig(tmp_path).start()
     try:
