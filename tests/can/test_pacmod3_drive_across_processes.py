@@ -96,7 +96,7 @@ def rig(tmp_path):
 
 def test_engage_brake_first_commands_at_30_hz_and_a_10_m_move_ends_within_0_2_m(rig) -> None:
     r = rig()
-    r.run_drive({"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}, 13.0)
+    r.run_drive({"distance_m": 10, "maxspeed_mps": 3, "curvature_1pm": 0}, 18.0)
     _, err = r.drive.communicate(timeout=90)
     assert r.drive.returncode == 0, err.decode()[-2000:]
     commands, truths = r.records()

@@ -433,7 +433,23 @@ class Pacmod3Client:
         shift = self.system_rpt.get("shift")
         if shift is not None and shift.output_value == Gear.ERROR:
             return "shift report: gear ERROR"
+        if self._brake_answers():
+            # a fault on another system while the brake still answers: stop with the brake
+            # (disabling at speed would coast; a stuck steering rolled 46 m, red team 2026-11-26)
+            for s in self.systems:
+                r = self.system_rpt.get(s)
+                if s != "brake" and r is not None and (r.faulted or (
+                        not r.enabled and not r.override_active)):
+                    why = "claims a fault" if r.faulted else "was disabled by the kit"
+                    return f"{s} report {why} (braking to a stop with the brake)"
         return None
+
+    def _brake_answers(self) -> bool:
+        """Engaged (or stopping) with the kit's brake enabled and not faulted: whatever else
+        failed, the client can still stop the vehicle itself."""
+        brake = self.system_rpt.get("brake")
+        return (self.state in ("engaged", "stopping") and brake is not None and brake.enabled
+                and not brake.faulted and not brake.override_active)
 
     def _kit_fault_reason(self, now_s: float, *, kit_faults: bool = True) -> str | None:
         """A fault the KIT reports (it has let go of the vehicle). Its own fault bits
@@ -444,14 +460,19 @@ class Pacmod3Client:
         if g is not None and g.config_fault_active:
             return "GLOBAL_RPT: config fault (the kit's configuration: not cleared by commands)"
         every = all(self._after_grace(s, now_s) for s in self.systems)
-        if kit_faults and g is not None and g.fault_active and every:
+        brake_answers = self._brake_answers()   # then another system's loss is the client's
+        explained = brake_answers and any(      # the global bit of another system's fault
+            getattr(self.system_rpt.get(s), "faulted", False) for s in self.systems
+            if s != "brake")
+        if kit_faults and g is not None and g.fault_active and every and not explained:
             return "GLOBAL_RPT: fault active"
         for s in self.systems:
             r = self.system_rpt.get(s)
-            if kit_faults and r is not None and r.faulted and self._after_grace(s, now_s):
+            if (kit_faults and r is not None and r.faulted and self._after_grace(s, now_s)
+                    and not (brake_answers and s != "brake")):
                 return f"{s} report claims a fault"
         if self.state in ("engaged", "stopping") and not (g is not None and g.usr_can_timeout):
-            for s in self.systems:
+            for s in (["brake"] if brake_answers else self.systems):
                 r = self.system_rpt.get(s)
                 if r is not None and not r.enabled and not r.override_active:
                     return f"the kit disabled {s} while engaged"
