@@ -296,7 +296,7 @@ def test_bring_up_enables_one_axis_with_low_caps(axis: str) -> None:
     loop.pedals = PedalCommand(throttle_pct=100.0, brake_pct=0.0, source="speed")
     loop.steer = SteerCommand(steer_pct=100.0, source="driving")
     loop.run(6.0)
-    expected = {"throttle": {"brake", "accel"}, "brake": {"brake"},
+    expected = {"throttle": {"brake", "accel", "shift"}, "brake": {"brake"},
                 "steering": {"brake", "steering"}}[axis]
     assert {s for s, on in loop.kit.enabled.items() if on} == expected
     assert all(m.accel_ratio <= BRING_UP_ACCEL_RATIO_MAX for _, m in kit_commands(loop, AccelCmd))

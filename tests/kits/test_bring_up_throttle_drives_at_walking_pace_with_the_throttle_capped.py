@@ -25,8 +25,6 @@ BRING_UP_ACCEL_RATIO = 0.2
 OVERSHOOT_MPS = 0.5            # the throttle cut at 2 m/s and the brake's lag
 
 
-@pytest.mark.xfail(strict=True, reason="--bring-up throttle never shifts out of park: the "
-                                       "vehicle never moves")
 def test_bring_up_throttle_drives_at_walking_pace_with_the_throttle_capped(tmp_path) -> None:
     rig = Rig(tmp_path).start()
     try:

@@ -120,10 +120,12 @@ SYSTEMS: Final = ("brake", "accel", "steering", "shift")
 WORKFLOW_SYSTEMS: Final[dict[str | None, tuple[str, ...]]] = {
     None: SYSTEMS,
     "brake": ("brake",),
-    "throttle": ("brake", "accel"),
+    "throttle": ("brake", "accel", "shift"),
     "steering": ("brake", "steering"),
 }
-"""The systems each mode enables (bring-up keeps the brake for stopping); brake first."""
+"""The systems each mode enables (bring-up keeps the brake for stopping); brake first. The
+throttle's takes the gear too (shifted, as always, only at a standstill with the brake held):
+without it a kit in park never moves (red team, 2026-11-26)."""
 
 _REPORTS: Final[dict[type, str]] = {AccelRpt: "accel", BrakeRpt: "brake", SteeringRpt: "steering",
                                     ShiftRpt: "shift"}
