@@ -9,12 +9,13 @@ presses the brake pedal for a second (an override). Runs until SIGTERM."""
 from __future__ import annotations
 
 import json
+import math
 import signal
 import sys
 import time
 from pathlib import Path
 
-from overdrive.runtime.can_edge import CanPort, resolve_can_config
+from overdrive.runtime.can_edge import CanPort, bus_arrival_s, resolve_can_config
 from overdrive.scenario.vehicles import KIT_VEHICLES
 from overdrive.vehicle.pacmod3_kit import KitFault, Pacmod3Kit
 
@@ -46,7 +47,7 @@ def main(argv: list[str]) -> None:
             for stamp, frame in bus.receive(0.0, now_s):
                 # a frame's time is the hub's stamp (a kit process starved of CPU reads late
                 # frames that were on time), never ahead of now nor behind the last one
-                last_s = min(max(stamp - wall_minus_mono - start, last_s), now_s)
+                last_s = bus_arrival_s(stamp, wall_minus_mono + start, now_s, last_s, math.inf)
                 kit.receive(frame, last_s)
                 try:
                     msg = kit.codec.decode(frame)

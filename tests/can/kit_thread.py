@@ -4,10 +4,11 @@ process (the drive runs in the main thread): the in-process end-to-end rig."""
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 
-from overdrive.runtime.can_edge import CanPort, resolve_can_config
+from overdrive.runtime.can_edge import CanPort, bus_arrival_s, resolve_can_config
 from overdrive.vehicle.pacmod3_kit import Pacmod3Kit
 
 STEP_S = 0.01
@@ -43,8 +44,8 @@ class KitThread:
                 for stamp, frame in self.port.receive(0.0, now_s):
                     # a frame's time is when it was sent (a thread starved by the GIL reads
                     # late frames that were on time), never ahead of now nor behind the last
-                    sent_s = stamp - wall_minus_mono - self.start_s
-                    last_s = min(max(sent_s, last_s), now_s)
+                    last_s = bus_arrival_s(stamp, wall_minus_mono + self.start_s, now_s,
+                                           last_s, math.inf)
                     self.kit.receive(frame, last_s)
                     with contextlib.suppress(ValueError):
                         self.received.append((now_s, self.kit.codec.decode(frame)))
