@@ -438,6 +438,9 @@ class Pacmod3Client:
         if self._brake_answers():
             # a fault on another system while the brake still answers: stop with the brake
             # (disabling at speed would coast; a stuck steering rolled 46 m, red team 2026-11-26)
+            g = self.global_rpt
+            if g is not None and g.fault_active:
+                return "GLOBAL_RPT: fault active (braking to a stop with the brake)"
             for s in self.systems:
                 r = self.system_rpt.get(s)
                 if s != "brake" and r is not None and (r.faulted or (
@@ -463,10 +466,10 @@ class Pacmod3Client:
             return "GLOBAL_RPT: config fault (the kit's configuration: not cleared by commands)"
         every = all(self._after_grace(s, now_s) for s in self.systems)
         brake_answers = self._brake_answers()   # then another system's loss is the client's
-        explained = brake_answers and any(      # the global bit of another system's fault
-            getattr(self.system_rpt.get(s), "faulted", False) for s in self.systems
-            if s != "brake")
-        if kit_faults and g is not None and g.fault_active and every and not explained:
+        # while the brake answers, GLOBAL_RPT's fault bit is the client's to stop on (it may
+        # arrive a report before the system's own fault bit in the same period)
+        if (kit_faults and g is not None and g.fault_active and every
+                and not brake_answers):
             return "GLOBAL_RPT: fault active"
         for s in self.systems:
             r = self.system_rpt.get(s)
